@@ -1,0 +1,80 @@
+"""The one exception tree of softsig.
+
+Every error caused by bad input is a :class:`SoftsigError` carrying the offending ``field`` (a dotted path such
+as ``closure.actuator`` or ``reference_points[2].site``), the bad ``value`` and, where there is a closed set of
+valid values, the ``choices``. The HTTP layer maps these onto problem+json bodies; the CLI prints them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any
+
+
+class SoftsigError(Exception):
+    """Base class for every error softsig raises on purpose."""
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        field: str | None = None,
+        value: Any = None,
+        choices: Iterable[Any] | None = None,
+    ) -> None:
+        self.message = message
+        self.field = field
+        self.value = value
+        self.choices = sorted(str(c) for c in choices) if choices is not None else None
+        super().__init__(self.describe())
+
+    def describe(self) -> str:
+        """One line for a person: the message, the field, the bad value and the valid choices."""
+        parts = [self.message]
+        if self.field is not None:
+            parts.append(f"field: {self.field}")
+        if self.value is not None:
+            parts.append(f"got: {self.value!r}")
+        if self.choices is not None:
+            parts.append("valid: " + ", ".join(self.choices))
+        return " | ".join(parts)
+
+
+class InvalidManifest(SoftsigError):
+    """A hand.toml that does not validate."""
+
+
+class InvalidHandModel(SoftsigError):
+    """A hand model (MJCF/URDF + assets) that cannot be loaded or breaks a rule."""
+
+
+class UnsafePath(InvalidHandModel):
+    """An asset path that is absolute or leaves the hand's folder."""
+
+
+class ModelTooLarge(InvalidHandModel):
+    """A hand model or asset beyond the documented size limits."""
+
+
+class FrameNotFound(SoftsigError):
+    """A named body, site, joint or actuator that the model does not have."""
+
+
+class HandNotFound(SoftsigError):
+    """A hand name that is neither built in nor registered."""
+
+
+class InvalidTrajectory(SoftsigError):
+    """Reference-point trajectories (simulated or uploaded markers) that cannot be used."""
+
+
+class InvalidInput(SoftsigError):
+    """Any other malformed numeric input (NaN, wrong shape, out of range)."""
+
+
+class SolverError(SoftsigError):
+    """A numerical solver that failed in a way that is not a plain infeasibility."""
+
+
+class RenderUnavailable(SoftsigError):
+    """Offscreen rendering was requested but no OpenGL backend could be created."""

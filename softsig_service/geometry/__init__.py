@@ -1,0 +1,1 @@
+"""Pure numpy geometry: rigid transforms, minimum-volume ellipsoids, principal components."""

@@ -1,0 +1,1 @@
+"""Hand models: manifests (hand.toml), model loading (MJCF/URDF) and simulated closure."""

@@ -1,0 +1,1 @@
+"""softsig_service.registry."""

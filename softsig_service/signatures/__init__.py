@@ -1,0 +1,1 @@
+"""Closure and stiffness signatures of a hand."""
