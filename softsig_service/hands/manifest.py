@@ -1,0 +1,219 @@
+"""The hand manifest ``hand.toml``: its schema and loader.
+
+A manifest names the model file (MJCF or URDF, relative to the manifest's folder), the mount body whose frame
+is the hand frame (DESIGN §3: origin at the flange, +z = approach, +x across the palm), the reference points
+tracked through a closure, the closure command and the simulation settings. Every bad value raises
+:class:`~softsig_service.errors.InvalidManifest` naming the field (a dotted path) and, where they are a closed
+set, the valid choices.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from softsig_service.errors import InvalidManifest
+
+NAME_PATTERN = r"^[a-z][a-z0-9_\-]{0,63}$"
+MODEL_SUFFIXES = (".xml", ".urdf")
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class ReferencePoint(_Strict):
+    """A tracked point: an MJCF ``site``, or a ``body`` plus an ``offset`` [m] in that body's frame."""
+
+    name: str = Field(min_length=1, max_length=64)
+    site: str | None = None
+    body: str | None = None
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @model_validator(mode="after")
+    def _one_anchor(self) -> ReferencePoint:
+        if (self.site is None) == (self.body is None):
+            raise ValueError("give exactly one of 'site' or 'body' (with an optional 'offset')")
+        if self.site is not None and self.offset != (0.0, 0.0, 0.0):
+            raise ValueError("'offset' applies to a 'body' reference point, not to a 'site'")
+        return self
+
+
+class ActuatorClosure(_Strict):
+    """Closure by ramping one or more actuators' controls from ``open`` to ``closed`` over ``duration`` [s].
+
+    ``settle`` [s] is the time held at the closed command before the last sample. Units of ``open``/``closed``
+    are the actuators' control units (stated in the hand's README).
+    """
+
+    kind: Literal["actuator"]
+    actuators: list[str] = Field(min_length=1)
+    open: float
+    closed: float
+    duration: float = Field(1.0, gt=0.0, le=30.0)
+    settle: float = Field(0.5, ge=0.0, le=30.0)
+
+
+class PostureClosure(_Strict):
+    """Closure of a fully actuated hand: joint targets interpolated from ``open`` to ``closed`` postures.
+
+    Postures map joint names to positions [rad] (hinge) or [m] (slide). A position servo of gain ``kp``
+    [N·m/rad or N/m] and damping ``kv`` is added to each named joint at load time.
+    """
+
+    kind: Literal["posture"]
+    open: dict[str, float] = Field(min_length=1)
+    closed: dict[str, float] = Field(min_length=1)
+    duration: float = Field(1.0, gt=0.0, le=30.0)
+    settle: float = Field(0.5, ge=0.0, le=30.0)
+    kp: float = Field(50.0, gt=0.0)
+    kv: float = Field(1.0, ge=0.0)
+    force_limit: float | None = Field(None, gt=0.0, description="servo force limit [N] or [N·m]")
+
+    @model_validator(mode="after")
+    def _same_joints(self) -> PostureClosure:
+        if set(self.open) != set(self.closed):
+            missing = sorted(set(self.open) ^ set(self.closed))
+            raise ValueError(f"open and closed postures must name the same joints; differing: {missing}")
+        return self
+
+
+Closure = Annotated[ActuatorClosure | PostureClosure, Field(discriminator="kind")]
+
+
+class SimulationSettings(_Strict):
+    """Closure simulation settings: ``timestep`` [s], ``sample_period`` [s] between recorded frames."""
+
+    timestep: float = Field(0.002, gt=0.0, le=0.01)
+    sample_period: float = Field(0.01, gt=0.0, le=1.0)
+    gravity: bool = False
+    integrator: Literal["Euler", "RK4", "implicit", "implicitfast"] = "implicitfast"
+    surface_points: int = Field(1500, ge=0, le=20000, description="target number of tracked surface points")
+
+
+class PhysicalParameters(_Strict):
+    """Physical parameters echoed for users; the simulation reads the model, these are for the record."""
+
+    joint_stiffness: dict[str, float] = Field(default_factory=dict, description="[N·m/rad] or [N/m] per joint group")
+    synergy: dict[str, float] = Field(default_factory=dict, description="transmission coefficients R per joint group")
+    actuator_stiffness: float | None = Field(None, description="actuator stiffness Kz in synergy units")
+    mass: float | None = Field(None, gt=0.0, description="total hand mass [kg]")
+    notes: str = ""
+
+
+class HandManifest(_Strict):
+    """The validated content of a ``hand.toml``."""
+
+    name: str = Field(pattern=NAME_PATTERN)
+    description: str = ""
+    kind: Literal["underactuated", "soft", "fully_actuated"] = "underactuated"
+    model: str
+    scene: str | None = None
+    mount: str = Field(min_length=1, description="body whose frame is the hand frame (mounted at UR5 tool0)")
+    reference_points: list[ReferencePoint] | None = None
+    closure: Closure
+    simulation: SimulationSettings = Field(default_factory=SimulationSettings)
+    physical: PhysicalParameters = Field(default_factory=PhysicalParameters)
+
+    @field_validator("model", "scene")
+    @classmethod
+    def _relative_model_path(cls, value: str | None) -> str | None:
+        if value is None:
+            return value
+        if not value.lower().endswith(MODEL_SUFFIXES):
+            raise ValueError(f"model files must end with one of {', '.join(MODEL_SUFFIXES)}")
+        return value
+
+    @field_validator("reference_points")
+    @classmethod
+    def _unique_points(cls, value: list[ReferencePoint] | None) -> list[ReferencePoint] | None:
+        if value is None:
+            return value
+        names = [p.name for p in value]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"reference point names must be unique; repeated: {dup}")
+        if len(value) < 4:
+            raise ValueError("at least 4 reference points are needed for a closure signature")
+        return value
+
+    @property
+    def model_format(self) -> Literal["mjcf", "urdf"]:
+        """``"urdf"`` for a ``.urdf`` model file, else ``"mjcf"``."""
+        return "urdf" if self.model.lower().endswith(".urdf") else "mjcf"
+
+
+def _loc_to_field(loc: tuple[int | str, ...]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        elif part in ("actuator", "posture") and out.endswith("closure"):
+            continue  # discriminated-union tag, not a field of the document
+        else:
+            out += ("." if out else "") + str(part)
+    return out or "$"
+
+
+_LITERAL_CHOICES = re.compile(r"'([^']+)'")
+
+
+def manifest_from_dict(data: Any, *, source: str = "hand.toml") -> HandManifest:
+    """Validate a parsed manifest mapping; raise :class:`InvalidManifest` naming the first bad field."""
+    try:
+        return HandManifest.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        field = _loc_to_field(tuple(err["loc"]))
+        choices: list[str] | None = None
+        ctx = err.get("ctx") or {}
+        if err["type"] == "literal_error" and "expected" in ctx:
+            choices = _LITERAL_CHOICES.findall(str(ctx["expected"]))
+        elif err["type"] == "union_tag_invalid" and "expected_tags" in ctx:
+            choices = _LITERAL_CHOICES.findall(str(ctx["expected_tags"]))
+            field = f"{field}.kind" if not field.endswith("kind") else field
+        elif err["type"] == "extra_forbidden":
+            parent = tuple(err["loc"][:-1])
+            choices = _known_fields(parent)
+        value = err.get("input") if err["type"] != "missing" else None
+        if isinstance(value, dict):
+            value = None
+        raise InvalidManifest(
+            f"{source}: {err['msg']}", field=field, value=value, choices=choices
+        ) from None
+
+
+def _known_fields(parent: tuple[int | str, ...]) -> list[str] | None:
+    model: type[BaseModel] = HandManifest
+    sub = {
+        "reference_points": ReferencePoint,
+        "simulation": SimulationSettings,
+        "physical": PhysicalParameters,
+    }
+    names = [p for p in parent if isinstance(p, str)]
+    if not names:
+        return sorted(model.model_fields)
+    if names[0] == "closure":
+        kind = names[1] if len(names) > 1 else "actuator"
+        cls: type[BaseModel] = PostureClosure if kind == "posture" else ActuatorClosure
+        return sorted(cls.model_fields)
+    if names[0] in sub:
+        return sorted(sub[names[0]].model_fields)
+    return None
+
+
+def load_manifest(path: Path, *, max_bytes: int = 2_000_000) -> HandManifest:
+    """Read and validate ``hand.toml`` at ``path``."""
+    if not path.is_file():
+        raise InvalidManifest("manifest file not found", field="path", value=str(path))
+    if path.stat().st_size > max_bytes:
+        raise InvalidManifest(f"manifest larger than {max_bytes} bytes", field="path", value=path.stat().st_size)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InvalidManifest(f"{path.name} is not valid TOML: {exc}", field="$") from None
+    return manifest_from_dict(data, source=path.name)

@@ -1,0 +1,259 @@
+"""Load a hand (built-in name or a user's ``hand.toml``) into a compiled MuJoCo model with resolved frames.
+
+The compiled model holds the hand alone with its ``mount`` body welded to the world, so the hand frame is the
+world frame of this model at rest (the mount body's frame; DESIGN §3). For a posture closure (fully actuated
+hands, URDF hands) a position servo is added to each joint the posture names. Models are cached per manifest
+file and modification time: a request passes numbers, not files.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from softsig_service.config import ModelLimits, Settings
+from softsig_service.errors import FrameNotFound, HandNotFound, InvalidHandModel, ModelTooLarge
+from softsig_service.hands.assets import check_mjcf_paths, load_urdf_source
+from softsig_service.hands.manifest import HandManifest, PostureClosure, load_manifest
+
+_INTEGRATORS = {
+    "Euler": mujoco.mjtIntegrator.mjINT_EULER,
+    "RK4": mujoco.mjtIntegrator.mjINT_RK4,
+    "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
+    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+}
+SERVO_PREFIX = "softsig_servo_"
+
+
+@dataclass(frozen=True)
+class PointSpec:
+    """How to read a reference point: a site, or a body plus an offset [m] in that body's frame."""
+
+    name: str
+    kind: Literal["site", "body"]
+    id: int
+    offset: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class HandModel:
+    """A compiled hand: manifest, folder, MuJoCo model, mount body, reference points and closure controls."""
+
+    manifest: HandManifest
+    folder: Path
+    model: mujoco.MjModel
+    mount_body: int
+    points: tuple[PointSpec, ...]
+    closure_actuators: tuple[int, ...]
+    """Actuator ids ramped by the closure (the manifest's actuators, or the added posture servos)."""
+    closure_open: NDArray[np.float64]
+    closure_closed: NDArray[np.float64]
+    """Open and closed control values for ``closure_actuators``."""
+    posture_qpos: tuple[tuple[int, float], ...]
+    """For posture closures: (qpos address, open value) set before the closure starts."""
+
+    @property
+    def name(self) -> str:
+        """The hand's name from its manifest."""
+        return self.manifest.name
+
+    @property
+    def point_names(self) -> tuple[str, ...]:
+        """Reference point names in tracking order."""
+        return tuple(p.name for p in self.points)
+
+
+def builtin_hands_dir(settings: Settings | None = None) -> Path:
+    """The folder of the built-in hands."""
+    return (settings or Settings()).hands_dir
+
+
+def builtin_hand_names(settings: Settings | None = None) -> list[str]:
+    """Names of the built-in hands: the sub-folders of ``hands/`` holding a ``hand.toml``."""
+    root = builtin_hands_dir(settings)
+    return sorted(p.parent.name for p in root.glob("*/hand.toml"))
+
+
+def resolve_hand_path(ref: str, settings: Settings | None = None) -> Path:
+    """Map a built-in hand name or a path to ``hand.toml`` (or its folder) onto the manifest path."""
+    candidate = Path(ref)
+    if candidate.suffix == ".toml":
+        if not candidate.is_file():
+            raise HandNotFound("manifest file not found", field="hand", value=ref)
+        return candidate.resolve()
+    if candidate.is_dir() and (candidate / "hand.toml").is_file():
+        return (candidate / "hand.toml").resolve()
+    path = builtin_hands_dir(settings) / ref / "hand.toml"
+    if "/" not in ref and path.is_file():
+        return path.resolve()
+    raise HandNotFound(
+        "unknown hand: give a built-in name or a path to hand.toml",
+        field="hand",
+        value=ref,
+        choices=builtin_hand_names(settings),
+    )
+
+
+def load_hand(ref: str, settings: Settings | None = None) -> HandModel:
+    """Load (or fetch from the cache) the hand named ``ref`` or described by the manifest at ``ref``."""
+    settings = settings or Settings()
+    path = resolve_hand_path(ref, settings)
+    return _load_cached(str(path), path.stat().st_mtime_ns, settings.limits)
+
+
+@functools.lru_cache(maxsize=32)
+def _load_cached(path: str, _mtime_ns: int, limits: ModelLimits) -> HandModel:
+    manifest_path = Path(path)
+    manifest = load_manifest(manifest_path, max_bytes=limits.max_model_bytes)
+    return compile_hand(manifest, manifest_path.parent, limits)
+
+
+def hand_spec(manifest: HandManifest, folder: Path, limits: ModelLimits) -> mujoco.MjSpec:
+    """A fresh ``MjSpec`` of the hand's model file (checked paths and sizes), without softsig's additions."""
+    model_path = folder / manifest.model
+    if manifest.model_format == "urdf":
+        src = load_urdf_source(model_path, limits)
+        try:
+            return mujoco.MjSpec.from_string(src.xml, assets=src.assets)
+        except ValueError as exc:
+            raise InvalidHandModel(f"MuJoCo cannot parse the URDF: {exc}", field="model") from None
+    check_mjcf_paths(model_path, limits)
+    try:
+        return mujoco.MjSpec.from_file(str(model_path))
+    except ValueError as exc:
+        raise InvalidHandModel(f"MuJoCo cannot parse the MJCF: {exc}", field="model") from None
+
+
+def compile_hand(manifest: HandManifest, folder: Path, limits: ModelLimits) -> HandModel:
+    """Build the hand's ``MjSpec``, add posture servos, compile, check limits and resolve every name."""
+    spec = hand_spec(manifest, folder, limits)
+    sim = manifest.simulation
+    spec.option.timestep = sim.timestep
+    spec.option.integrator = _INTEGRATORS[sim.integrator]
+    closure = manifest.closure
+    if isinstance(closure, PostureClosure):
+        joint_names = {j.name for j in spec.joints}
+        for k, joint in enumerate(closure.open):
+            if joint not in joint_names:
+                raise FrameNotFound(
+                    "posture names a joint the model does not have",
+                    field=f"closure.open.{joint}",
+                    value=joint,
+                    choices=joint_names,
+                )
+            act = spec.add_actuator(name=f"{SERVO_PREFIX}{k}_{joint}", target=joint)
+            act.trntype = mujoco.mjtTrn.mjTRN_JOINT
+            act.set_to_position(kp=closure.kp, kv=closure.kv)
+            if closure.force_limit is not None:
+                act.forcelimited = True
+                act.forcerange = [-closure.force_limit, closure.force_limit]
+    try:
+        model = spec.compile()
+    except ValueError as exc:
+        raise InvalidHandModel(f"MuJoCo cannot compile the model: {exc}", field="model") from None
+    _check_size(model, limits)
+    mount = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, manifest.mount)
+    if mount < 0:
+        raise FrameNotFound("mount body not found", field="mount", value=manifest.mount, choices=_names(model, "body"))
+    if model.body_jntnum[mount] != 0 or model.body_parentid[mount] != 0:
+        raise InvalidHandModel(
+            "the mount body must be a child of the world with no joint (the wrist is fixed)",
+            field="mount",
+            value=manifest.mount,
+        )
+    points = _resolve_points(manifest, model)
+    actuators, open_ctrl, closed_ctrl, posture = _closure_controls(manifest, model)
+    return HandModel(
+        manifest=manifest,
+        folder=folder,
+        model=model,
+        mount_body=mount,
+        points=points,
+        closure_actuators=actuators,
+        closure_open=open_ctrl,
+        closure_closed=closed_ctrl,
+        posture_qpos=posture,
+    )
+
+
+def _names(model: mujoco.MjModel, kind: Literal["body", "site", "actuator", "joint"]) -> list[str]:
+    count = {"body": model.nbody, "site": model.nsite, "actuator": model.nu, "joint": model.njnt}[kind]
+    getter = {"body": model.body, "site": model.site, "actuator": model.actuator, "joint": model.joint}[kind]
+    return [getter(i).name for i in range(count) if getter(i).name]
+
+
+def _check_size(model: mujoco.MjModel, limits: ModelLimits) -> None:
+    for what, value, limit in (
+        ("bodies", model.nbody, limits.max_bodies),
+        ("degrees of freedom", model.nv, limits.max_dofs),
+        ("mesh vertices", model.nmeshvert, limits.max_mesh_vertices),
+    ):
+        if value > limit:
+            raise ModelTooLarge(f"model has more {what} than the limit of {limit}", field="model", value=value)
+
+
+def _resolve_points(manifest: HandManifest, model: mujoco.MjModel) -> tuple[PointSpec, ...]:
+    if manifest.reference_points is None:
+        sites = [n for n in _names(model, "site") if n.endswith("_tip")]
+        specs = [PointSpec(n, "site", model.site(n).id, (0.0, 0.0, 0.0)) for n in sites]
+        wrist = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "wrist")
+        if wrist >= 0:
+            specs.append(PointSpec("wrist", "site", wrist, (0.0, 0.0, 0.0)))
+        else:
+            mount = model.body(manifest.mount).id
+            specs.append(PointSpec("wrist", "body", mount, (0.0, 0.0, 0.0)))
+        if len(specs) < 4:
+            raise InvalidHandModel(
+                "no reference_points given and fewer than 4 default points (sites named *_tip + wrist) found",
+                field="reference_points",
+                value=[s.name for s in specs],
+            )
+        return tuple(specs)
+    out = []
+    for k, p in enumerate(manifest.reference_points):
+        if p.site is not None:
+            sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, p.site)
+            if sid < 0:
+                raise FrameNotFound(
+                    "site not found", field=f"reference_points[{k}].site", value=p.site, choices=_names(model, "site")
+                )
+            out.append(PointSpec(p.name, "site", sid, (0.0, 0.0, 0.0)))
+        else:
+            assert p.body is not None
+            bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, p.body)
+            if bid < 0:
+                raise FrameNotFound(
+                    "body not found", field=f"reference_points[{k}].body", value=p.body, choices=_names(model, "body")
+                )
+            out.append(PointSpec(p.name, "body", bid, p.offset))
+    return tuple(out)
+
+
+def _closure_controls(
+    manifest: HandManifest, model: mujoco.MjModel
+) -> tuple[tuple[int, ...], NDArray[np.float64], NDArray[np.float64], tuple[tuple[int, float], ...]]:
+    closure = manifest.closure
+    if isinstance(closure, PostureClosure):
+        ids, lo, hi, posture = [], [], [], []
+        for k, joint in enumerate(closure.open):
+            ids.append(model.actuator(f"{SERVO_PREFIX}{k}_{joint}").id)
+            lo.append(closure.open[joint])
+            hi.append(closure.closed[joint])
+            posture.append((int(model.jnt_qposadr[model.joint(joint).id]), closure.open[joint]))
+        return tuple(ids), np.array(lo), np.array(hi), tuple(posture)
+    ids = []
+    for k, name in enumerate(closure.actuators):
+        aid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+        if aid < 0:
+            raise FrameNotFound(
+                "actuator not found", field=f"closure.actuators[{k}]", value=name, choices=_names(model, "actuator")
+            )
+        ids.append(aid)
+    n = len(ids)
+    return tuple(ids), np.full(n, closure.open), np.full(n, closure.closed), ()
