@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 import json
-import os
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any
 
-os.environ.setdefault("MUJOCO_GL", "egl")  # offscreen rendering without a display; set before MuJoCo loads
-
 import typer
+
+from softsig_service.gl_backend import prepare_mujoco
+
+prepare_mujoco()  # headless EGL by default; must run before anything imports MuJoCo
 
 from softsig_service.config import Settings
 from softsig_service.errors import SoftsigError

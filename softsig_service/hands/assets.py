@@ -89,17 +89,25 @@ def _resolve_package(folder: Path, ref: str, field: str) -> Path:
     )
 
 
-def load_urdf_source(path: Path, limits: ModelLimits) -> ModelSource:
-    """Read a URDF and every mesh it names, ready for MuJoCo, without touching the file on disk.
+def load_urdf_source(path: Path, limits: ModelLimits, hand_root: Path | None = None) -> ModelSource:
+    """Read a URDF and every collision mesh it names, ready for MuJoCo, without touching the file on disk.
 
-    Mesh references become flat asset names; a ``<mujoco><compiler/></mujoco>`` block is added in memory so
-    that fixed links are kept as bodies (reference points may name them) and visual geoms are dropped.
+    ``hand_root`` (default: the URDF's folder) is the hand's folder: ``package://`` references resolve inside
+    it and no file may lie outside it; plain relative mesh paths resolve against the URDF's own folder.
+    ``<visual>`` elements are dropped (MuJoCo simulates collision geometry; visual formats such as COLLADA
+    cannot be loaded). Mesh references become flat asset names; a ``<mujoco><compiler/></mujoco>`` block is
+    added in memory so that fixed links are kept as bodies (reference points may name them).
     """
-    folder = path.parent
+    folder = (hand_root or path.parent).resolve()
+    if not path.resolve().is_relative_to(folder):
+        raise UnsafePath("the URDF must lie inside the hand's folder", field="model", value=str(path))
     text = read_model_text(path, limits)
     root = _parse(text, "model")
     if root.tag != "robot":
         raise InvalidHandModel("a URDF's root element must be <robot>", field="model", value=root.tag)
+    for link in root.iter("link"):
+        for visual in link.findall("visual"):
+            link.remove(visual)
     assets: dict[str, bytes] = {}
     total = len(text)
     for k, mesh in enumerate(root.iter("mesh")):
@@ -110,7 +118,10 @@ def load_urdf_source(path: Path, limits: ModelLimits) -> ModelSource:
         if ref.startswith("package://"):
             file = _resolve_package(folder, ref, field)
         else:
-            file = _inside(folder, _check_relative(ref, field), field, ref)
+            rel = _check_relative(ref, field)
+            file = (path.parent / rel).resolve()
+            if not file.is_relative_to(folder):
+                raise UnsafePath("asset path resolves outside the hand's folder", field=field, value=ref)
         data = _read_limited(file, limits.max_asset_bytes, field)
         name = f"asset{k:04d}_{file.name}"
         assets[name] = data

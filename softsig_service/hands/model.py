@@ -9,6 +9,7 @@ file and modification time: a request passes numbers, not files.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -18,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from softsig_service.config import ModelLimits, Settings
-from softsig_service.errors import FrameNotFound, HandNotFound, InvalidHandModel, ModelTooLarge
+from softsig_service.errors import FrameNotFound, HandNotFound, InvalidHandModel, ModelTooLarge, UnsafePath
 from softsig_service.hands.assets import check_mjcf_paths, load_urdf_source
 from softsig_service.hands.manifest import HandManifest, PostureClosure, load_manifest
 
@@ -116,9 +117,11 @@ def _load_cached(path: str, _mtime_ns: int, limits: ModelLimits) -> HandModel:
 
 def hand_spec(manifest: HandManifest, folder: Path, limits: ModelLimits) -> mujoco.MjSpec:
     """A fresh ``MjSpec`` of the hand's model file (checked paths and sizes), without softsig's additions."""
-    model_path = folder / manifest.model
+    model_path = (folder / manifest.model).resolve()
+    if Path(manifest.model).is_absolute() or not model_path.is_relative_to(folder.resolve()):
+        raise UnsafePath("the model file must lie inside the hand's folder", field="model", value=manifest.model)
     if manifest.model_format == "urdf":
-        src = load_urdf_source(model_path, limits)
+        src = load_urdf_source(model_path, limits, hand_root=folder)
         try:
             return mujoco.MjSpec.from_string(src.xml, assets=src.assets)
         except ValueError as exc:
@@ -130,9 +133,19 @@ def hand_spec(manifest: HandManifest, folder: Path, limits: ModelLimits) -> mujo
         raise InvalidHandModel(f"MuJoCo cannot parse the MJCF: {exc}", field="model") from None
 
 
-def compile_hand(manifest: HandManifest, folder: Path, limits: ModelLimits) -> HandModel:
-    """Build the hand's ``MjSpec``, add posture servos, compile, check limits and resolve every name."""
+def compile_hand(
+    manifest: HandManifest,
+    folder: Path,
+    limits: ModelLimits,
+    edit: Callable[[mujoco.MjSpec], None] | None = None,
+) -> HandModel:
+    """Build the hand's ``MjSpec``, add posture servos, compile, check limits and resolve every name.
+
+    ``edit`` may add to the spec before compiling (an obstacle, an object); the result is not cached.
+    """
     spec = hand_spec(manifest, folder, limits)
+    if edit is not None:
+        edit(spec)
     sim = manifest.simulation
     spec.option.timestep = sim.timestep
     spec.option.integrator = _INTEGRATORS[sim.integrator]

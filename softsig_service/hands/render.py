@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from softsig_service.errors import RenderUnavailable
+from softsig_service.gl_backend import render_unavailable_reason
 from softsig_service.hands.closure import prepare_data, run_closure
 from softsig_service.hands.model import HandModel
 
@@ -38,14 +39,15 @@ def render_open_closed(hand: HandModel, *, width: int = 480, height: int = 480) 
     model.vis.headlight.diffuse[:] = 0.7
     model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
     model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    hint = "offscreen rendering needs an OpenGL backend: install libegl1 libegl-mesa0 libgl1-mesa-dri and set "
+    hint += "MUJOCO_GL=egl (or osmesa with libosmesa6)"
+    reason = render_unavailable_reason()
+    if reason is not None:
+        raise RenderUnavailable(f"{hint}; {reason}", field="MUJOCO_GL")
     try:
         renderer = mujoco.Renderer(model, height=height, width=width)
-    except Exception as exc:  # MuJoCo raises plain RuntimeError/FatalError kinds for GL failures
-        raise RenderUnavailable(
-            "offscreen rendering needs an OpenGL backend: install libegl1 libegl-mesa0 libgl1-mesa-dri and set "
-            f"MUJOCO_GL=egl (or osmesa); MuJoCo said: {exc}",
-            field="MUJOCO_GL",
-        ) from None
+    except Exception as exc:  # MuJoCo raises plain RuntimeError/ImportError kinds for GL failures
+        raise RenderUnavailable(f"{hint}; MuJoCo said: {exc}", field="MUJOCO_GL") from None
     with renderer:
         data = prepare_data(hand, model)
         cam = _camera(model, data)

@@ -1,0 +1,146 @@
+"""The built-in hand models: they compile, step cleanly, close, converge and adapt to obstacles."""
+
+from __future__ import annotations
+
+import copy
+
+import mujoco
+import numpy as np
+import pytest
+
+from softsig_service.config import Settings
+from softsig_service.hands.closure import prepare_data, run_closure, simulate_closure
+from softsig_service.hands.manifest import load_manifest
+from softsig_service.hands.model import HandModel, builtin_hand_names, compile_hand, load_hand
+from softsig_service.hands.summary import fingertip_spread
+
+
+BUILTIN_HANDS = builtin_hand_names()
+EXPECTED_HANDS = {"pisa_iit_softhand", "sdm_hand", "rbo_hand2", "parallel_gripper"}
+CONVERGENCE_RATIO = 0.7
+"""Closure converges when the fingertips' mean distance to their centroid shrinks to <= 70 % of the open one."""
+
+
+def test_all_four_hands_ship() -> None:
+    assert EXPECTED_HANDS <= set(BUILTIN_HANDS)
+
+
+@pytest.mark.parametrize("name", BUILTIN_HANDS)
+def test_scene_compiles_and_steps_one_second_without_warnings(name: str, settings: Settings) -> None:
+    hand = load_hand(name, settings)
+    assert hand.manifest.scene is not None
+    model = mujoco.MjModel.from_xml_path(str(hand.folder / hand.manifest.scene))
+    assert model.opt.gravity[2] < 0  # the scene keeps gravity on
+    data = mujoco.MjData(model)
+    for _ in range(round(1.0 / model.opt.timestep)):
+        mujoco.mj_step(model, data)
+    assert [w.number for w in data.warning] == [0] * len(data.warning)
+    assert np.all(np.isfinite(data.qpos))
+
+
+@pytest.mark.parametrize("name", BUILTIN_HANDS)
+def test_closure_makes_fingertips_converge(name: str, settings: Settings) -> None:
+    hand = load_hand(name, settings)
+    traj = simulate_closure(hand, surface_points=0)
+    open_spread = fingertip_spread(traj.positions[0], traj.point_names)
+    closed_spread = fingertip_spread(traj.positions[-1], traj.point_names)
+    assert closed_spread <= CONVERGENCE_RATIO * open_spread, (open_spread, closed_spread)
+    assert traj.frame_id == "hand"
+    assert traj.times[0] == 0.0
+    assert traj.n_points >= 4 and "wrist" in traj.point_names
+
+
+@pytest.mark.parametrize("name", BUILTIN_HANDS)
+def test_hand_frame_conventions(name: str, settings: Settings) -> None:
+    """Fingers point along hand +z (approach) from a mount at the flange; the wrist point stays put."""
+    traj = simulate_closure(load_hand(name, settings), surface_points=0)
+    tips = [k for k, n in enumerate(traj.point_names) if n.endswith("_tip")]
+    wrist = traj.point_names.index("wrist")
+    assert np.all(traj.positions[0, tips, 2] > traj.positions[0, wrist, 2])
+    np.testing.assert_allclose(traj.positions[:, wrist], np.broadcast_to(traj.positions[0, wrist], (traj.n_frames, 3)))
+
+
+def test_closure_is_deterministic_and_leaves_cached_model_untouched(settings: Settings) -> None:
+    hand = load_hand("pisa_iit_softhand", settings)
+    gravity = hand.model.opt.gravity.copy()
+    a = simulate_closure(hand)
+    b = simulate_closure(hand)
+    np.testing.assert_array_equal(a.positions, b.positions)
+    assert a.surface is not None and b.surface is not None
+    np.testing.assert_array_equal(a.surface, b.surface)
+    np.testing.assert_array_equal(hand.model.opt.gravity, gravity)
+
+
+def test_surface_points_are_on_the_hand_and_move_with_it(settings: Settings) -> None:
+    hand = load_hand("pisa_iit_softhand", settings)
+    traj = simulate_closure(hand, surface_points=800)
+    assert traj.surface is not None
+    assert 600 <= traj.surface.shape[1] <= 1200
+    moved = np.linalg.norm(traj.surface[-1] - traj.surface[0], axis=1)
+    assert moved.max() > 0.05  # fingertip surfaces travel several centimetres
+    assert np.mean(moved > 0.005) > 0.2  # the fingers move (palm and wrist, most of the area, stay)
+
+
+def test_gravity_option_changes_the_closure(settings: Settings) -> None:
+    hand = load_hand("sdm_hand", settings)
+    free = simulate_closure(hand, surface_points=0, gravity=False)
+    heavy = simulate_closure(hand, surface_points=0, gravity=True)
+    assert not np.allclose(free.positions, heavy.positions)
+
+
+# --- adaptivity: one finger blocked at its proximal link ---------------------------------------------------
+
+ADAPTIVE_CASES = {
+    # hand: (blocked finger prefix, proximal body, proximal joint, distal joint, other fingers' prefixes)
+    "pisa_iit_softhand": ("index", "index_prox", "index_prox_1", "index_dist_1", ("middle", "ring", "little")),
+}
+
+
+def _joint_angles(model: mujoco.MjModel, data: mujoco.MjData) -> dict[str, float]:
+    return {
+        model.joint(j).name: float(data.qpos[model.jnt_qposadr[j]])
+        for j in range(model.njnt)
+        if int(model.jnt_type[j]) in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    }
+
+
+def _close(hand: HandModel) -> dict[str, float]:
+    model = copy.copy(hand.model)
+    model.opt.gravity[:] = 0
+    data = prepare_data(hand, model)
+    closure = hand.manifest.closure
+    run_closure(hand, model, data, duration=closure.duration, settle=closure.settle)
+    return _joint_angles(model, data)
+
+
+@pytest.mark.parametrize("name", sorted(ADAPTIVE_CASES))
+def test_blocked_finger_keeps_wrapping_and_others_close_as_in_free_space(name: str, settings: Settings) -> None:
+    finger, prox_body, prox_joint, dist_joint, others = ADAPTIVE_CASES[name]
+    free_hand = load_hand(name, settings)
+    free = _close(free_hand)
+
+    # the proximal link's position and closing direction in the open hand (hand frame = world here)
+    model = free_hand.model
+    data = prepare_data(free_hand, copy.copy(model))
+    body = model.body(prox_body).id
+    centre = data.xpos[body] + data.xmat[body].reshape(3, 3) @ np.array([0.0, 0.0, 0.004])
+    towards = data.xmat[body].reshape(3, 3) @ np.array([0.0, 1.0, 0.0])  # flexion curls toward local +y
+
+    def add_obstacle(spec: mujoco.MjSpec) -> None:
+        spec.worldbody.add_geom(
+            name="obstacle",
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=[0.004, 0.003, 0.004],
+            pos=centre + towards * 0.0115,
+        )
+
+    manifest_path = free_hand.folder / "hand.toml"
+    blocked_hand = compile_hand(load_manifest(manifest_path), free_hand.folder, settings.limits, add_obstacle)
+    blocked = _close(blocked_hand)
+
+    assert blocked[prox_joint] < 0.35 * free[prox_joint], "the obstacle must stop the proximal link"
+    assert blocked[dist_joint] > 0.7 * free[dist_joint], "the distal joints keep closing around the obstacle"
+    for other in others:
+        for joint, angle in free.items():
+            if joint.startswith(other + "_"):
+                assert blocked[joint] == pytest.approx(angle, abs=0.08), joint

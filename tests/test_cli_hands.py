@@ -1,0 +1,74 @@
+"""The ``softsig hands`` commands, run as a user runs them (a subprocess of the installed console script)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SOFTSIG = [sys.executable, "-m", "softsig_service.cli"]
+
+
+def run(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [*SOFTSIG, *args], capture_output=True, text=True, timeout=300, env={**os.environ, **(env or {})}
+    )
+
+
+def test_hands_list_json() -> None:
+    res = run("hands", "list", "--json")
+    assert res.returncode == 0, res.stderr
+    rows = json.loads(res.stdout)
+    names = {r["name"] for r in rows}
+    assert {"pisa_iit_softhand", "sdm_hand", "rbo_hand2", "parallel_gripper"} <= names
+    pisa = next(r for r in rows if r["name"] == "pisa_iit_softhand")
+    assert pisa["actuators"] == 1 and pisa["reference_points"] == 6
+
+
+def test_hands_show_json_and_unknown_hand() -> None:
+    res = run("hands", "show", "pisa_iit_softhand", "--json")
+    assert res.returncode == 0, res.stderr
+    info = json.loads(res.stdout)
+    assert info["frame_id"] == "hand" and info["mount"] == "mount"
+    assert [p["name"] for p in info["reference_points"]][-1] == "wrist"
+    assert info["physical"]["synergy"]["thumb_abduction"] == 1.3
+    bad = run("hands", "show", "nonexistent")
+    assert bad.returncode == 2
+    assert "field: hand" in bad.stderr and "pisa_iit_softhand" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_hands_close_writes_the_trajectory_json(tmp_path: Path) -> None:
+    out = tmp_path / "traj.json"
+    res = run("hands", "close", "sdm_hand", "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    data = json.loads(out.read_text())
+    assert set(data) == {"hand", "frame_id", "times", "point_names", "positions"}
+    assert data["frame_id"] == "hand" and data["hand"] == "sdm_hand"
+    T, N = len(data["times"]), len(data["point_names"])
+    assert len(data["positions"]) == T and all(len(f) == N and all(len(p) == 3 for p in f) for f in data["positions"])
+
+
+def test_hands_close_from_a_manifest_path(tmp_path: Path) -> None:
+    manifest = Path(__file__).resolve().parent.parent / "hands" / "parallel_gripper" / "hand.toml"
+    res = run("hands", "close", str(manifest), "--out", str(tmp_path / "t.json"))
+    assert res.returncode == 0, res.stderr
+
+
+def test_render_writes_a_png(tmp_path: Path) -> None:
+    out = tmp_path / "hand.png"
+    res = run("hands", "render", "parallel_gripper", "--out", str(out), "--size", "128")
+    if res.returncode == 2 and "OpenGL backend" in res.stderr:
+        pytest.skip("no OpenGL backend on this machine: " + res.stderr.strip())
+    assert res.returncode == 0, res.stderr
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_render_without_a_usable_backend_fails_with_a_clear_message(tmp_path: Path) -> None:
+    res = run("hands", "render", "parallel_gripper", "--out", str(tmp_path / "x.png"), env={"MUJOCO_GL": "nonsense"})
+    assert res.returncode == 2
+    assert "OpenGL backend" in res.stderr and "Traceback" not in res.stderr
+    assert not (tmp_path / "x.png").exists()
