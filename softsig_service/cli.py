@@ -15,11 +15,14 @@ from softsig_service.gl_backend import prepare_mujoco
 
 prepare_mujoco()  # headless EGL by default; must run before anything imports MuJoCo
 
-from softsig_service.config import Settings
-from softsig_service.errors import SoftsigError
+from softsig_service.config import Settings  # noqa: E402
+from softsig_service.errors import SoftsigError  # noqa: E402
 
-app = typer.Typer(help="softsig: closure and stiffness signatures of soft hands, and top-grasp planning.",
-                  no_args_is_help=True, pretty_exceptions_enable=False)
+app = typer.Typer(
+    help="softsig: closure and stiffness signatures of soft hands, and top-grasp planning.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+)
 hands_app = typer.Typer(help="The hand library: list, show, close and render hands.", no_args_is_help=True)
 app.add_typer(hands_app, name="hands")
 
@@ -88,7 +91,10 @@ def hands_show(
         info = hand_info(load_hand(hand, Settings()))
 
         def text() -> str:
-            lines = [f"{info['name']}: {info['description']}", f"  model: {info['model_file']} ({info['model_format']})"]
+            lines = [
+                f"{info['name']}: {info['description']}",
+                f"  model: {info['model_file']} ({info['model_format']})",
+            ]
             lines.append(f"  bodies {info['bodies']}, joints {len(info['joints'])}, actuators {info['actuators']}")
             lines.append(f"  mass {info['mass']:.3f} kg, mount body '{info['mount']}' = hand frame")
             lines.append("  reference points: " + ", ".join(p["name"] for p in info["reference_points"]))
@@ -167,4 +173,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -22,7 +22,7 @@ def prepare_mujoco(default_backend: str = "egl") -> None:
         return
     os.environ.setdefault("MUJOCO_GL", default_backend)
     try:
-        import mujoco  # noqa: F401
+        import mujoco
     except Exception as exc:  # a broken GL backend raises RuntimeError/AttributeError/OSError at import
         _REASON = f"MUJOCO_GL={os.environ.get('MUJOCO_GL')!r} could not be loaded ({type(exc).__name__}: {exc})"
         for name in [n for n in sys.modules if n.split(".")[0] in ("mujoco", "OpenGL")]:

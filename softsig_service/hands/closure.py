@@ -77,7 +77,9 @@ def run_closure(
     warnings = {mujoco.mjtWarning(i).name: int(w.number) for i, w in enumerate(data.warning) if w.number}
     if warnings or not np.all(np.isfinite(data.qpos)):
         raise SolverError(
-            "closure simulation became unstable", field="hand", value={"hand": hand.name, "warnings": warnings}
+            "closure simulation became unstable",
+            field="hand",
+            value={"hand": hand.name, "warnings": warnings},
         )
 
 

@@ -182,14 +182,12 @@ def manifest_from_dict(data: Any, *, source: str = "hand.toml") -> HandManifest:
         value = err.get("input") if err["type"] != "missing" else None
         if isinstance(value, dict):
             value = None
-        raise InvalidManifest(
-            f"{source}: {err['msg']}", field=field, value=value, choices=choices
-        ) from None
+        raise InvalidManifest(f"{source}: {err['msg']}", field=field, value=value, choices=choices) from None
 
 
 def _known_fields(parent: tuple[int | str, ...]) -> list[str] | None:
     model: type[BaseModel] = HandManifest
-    sub = {
+    sub: dict[str, type[BaseModel]] = {
         "reference_points": ReferencePoint,
         "simulation": SimulationSettings,
         "physical": PhysicalParameters,

@@ -234,7 +234,10 @@ def _resolve_points(manifest: HandManifest, model: mujoco.MjModel) -> tuple[Poin
             sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, p.site)
             if sid < 0:
                 raise FrameNotFound(
-                    "site not found", field=f"reference_points[{k}].site", value=p.site, choices=_names(model, "site")
+                    "site not found",
+                    field=f"reference_points[{k}].site",
+                    value=p.site,
+                    choices=_names(model, "site"),
                 )
             out.append(PointSpec(p.name, "site", sid, (0.0, 0.0, 0.0)))
         else:
@@ -242,7 +245,10 @@ def _resolve_points(manifest: HandManifest, model: mujoco.MjModel) -> tuple[Poin
             bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, p.body)
             if bid < 0:
                 raise FrameNotFound(
-                    "body not found", field=f"reference_points[{k}].body", value=p.body, choices=_names(model, "body")
+                    "body not found",
+                    field=f"reference_points[{k}].body",
+                    value=p.body,
+                    choices=_names(model, "body"),
                 )
             out.append(PointSpec(p.name, "body", bid, p.offset))
     return tuple(out)
@@ -265,7 +271,10 @@ def _closure_controls(
         aid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
         if aid < 0:
             raise FrameNotFound(
-                "actuator not found", field=f"closure.actuators[{k}]", value=name, choices=_names(model, "actuator")
+                "actuator not found",
+                field=f"closure.actuators[{k}]",
+                value=name,
+                choices=_names(model, "actuator"),
             )
         ids.append(aid)
     n = len(ids)

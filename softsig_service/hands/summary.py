@@ -37,16 +37,19 @@ def hand_info(hand: HandModel) -> dict[str, Any]:
         "mount": man.mount,
         "frame_id": "hand",
         "bodies": int(m.nbody - 1),
-        "joints": [
-            {"name": m.joint(j).name, "type": joint_types[int(m.jnt_type[j])]} for j in range(m.njnt)
-        ],
+        "joints": [{"name": m.joint(j).name, "type": joint_types[int(m.jnt_type[j])]} for j in range(m.njnt)],
         "actuators": [m.actuator(a).name for a in range(m.nu)],
         "tendons": [m.tendon(t).name for t in range(m.ntendon)],
         "mass": float(sum(m.body_mass[1:])),
         "reference_points": [
-            {"name": p.name, "kind": p.kind, "target": mujoco.mj_id2name(
-                m, mujoco.mjtObj.mjOBJ_SITE if p.kind == "site" else mujoco.mjtObj.mjOBJ_BODY, p.id
-            ), "offset": list(p.offset)}
+            {
+                "name": p.name,
+                "kind": p.kind,
+                "target": mujoco.mj_id2name(
+                    m, mujoco.mjtObj.mjOBJ_SITE if p.kind == "site" else mujoco.mjtObj.mjOBJ_BODY, p.id
+                ),
+                "offset": list(p.offset),
+            }
             for p in hand.points
         ],
         "closure": man.closure.model_dump(),

@@ -98,16 +98,14 @@ def sample_geom(model: mujoco.MjModel, geom: int, n: int) -> NDArray[np.float64]
         return np.vstack([sphere, _tube(max(4, n - len(sphere)), r, h)])
     if gtype == mujoco.mjtGeom.mjGEOM_CYLINDER:
         r, h = size[0], size[1]
-        caps = max(2, round(n * r / (2 * (r + 2 * h)) ))
+        caps = max(2, round(n * r / (2 * (r + 2 * h))))
         return np.vstack([_disk(caps, r, h), _disk(caps, r, -h), _tube(max(4, n - 2 * caps), r, h)])
     if gtype == mujoco.mjtGeom.mjGEOM_BOX:
         return _box(n, size)
     return np.zeros((0, 3))
 
 
-def hand_surface_samples(
-    model: mujoco.MjModel, total: int
-) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+def hand_surface_samples(model: mujoco.MjModel, total: int) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Samples over every geom not on the world body: (geom index per point (M,), local points (M, 3) [m])."""
     geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] != 0]
     areas = np.array(

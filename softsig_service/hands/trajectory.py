@@ -77,7 +77,10 @@ class ClosureTrajectory:
         frame_id = data.get("frame_id", "hand")
         if frame_id != "hand":
             raise InvalidTrajectory(
-                "trajectories must be expressed in the hand frame", field="frame_id", value=frame_id, choices=["hand"]
+                "trajectories must be expressed in the hand frame",
+                field="frame_id",
+                value=frame_id,
+                choices=["hand"],
             )
         names = data["point_names"]
         if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
@@ -123,7 +126,9 @@ def validate_trajectory(
     expected = (times.shape[0], len(point_names), 3)
     if positions.shape != expected:
         raise InvalidTrajectory(
-            f"positions must have shape [T][N][3] = {list(expected)}", field="positions", value=list(positions.shape)
+            f"positions must have shape [T][N][3] = {list(expected)}",
+            field="positions",
+            value=list(positions.shape),
         )
     finite = np.isfinite(positions)
     if not np.all(finite):

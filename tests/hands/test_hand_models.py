@@ -14,7 +14,6 @@ from softsig_service.hands.manifest import load_manifest
 from softsig_service.hands.model import HandModel, builtin_hand_names, compile_hand, load_hand
 from softsig_service.hands.summary import fingertip_spread
 
-
 BUILTIN_HANDS = builtin_hand_names()
 EXPECTED_HANDS = {"pisa_iit_softhand", "sdm_hand", "rbo_hand2", "parallel_gripper"}
 CONVERGENCE_RATIO = 0.7
@@ -22,7 +21,7 @@ CONVERGENCE_RATIO = 0.7
 
 
 def test_all_four_hands_ship() -> None:
-    assert EXPECTED_HANDS <= set(BUILTIN_HANDS)
+    assert set(BUILTIN_HANDS) >= EXPECTED_HANDS
 
 
 @pytest.mark.parametrize("name", BUILTIN_HANDS)
@@ -52,11 +51,15 @@ def test_closure_makes_fingertips_converge(name: str, settings: Settings) -> Non
 
 @pytest.mark.parametrize("name", BUILTIN_HANDS)
 def test_hand_frame_conventions(name: str, settings: Settings) -> None:
-    """Fingers point along hand +z (approach) from a mount at the flange; the wrist point stays put."""
-    traj = simulate_closure(load_hand(name, settings), surface_points=0)
+    """The hand lies on the approach side (+z) of the flange at the origin; the wrist point stays put."""
+    hand = load_hand(name, settings)
+    assert np.allclose(hand.model.body_pos[hand.mount_body], 0) and np.allclose(
+        hand.model.body_quat[hand.mount_body], [1, 0, 0, 0]
+    )
+    traj = simulate_closure(hand, surface_points=0)
     tips = [k for k, n in enumerate(traj.point_names) if n.endswith("_tip")]
     wrist = traj.point_names.index("wrist")
-    assert np.all(traj.positions[0, tips, 2] > traj.positions[0, wrist, 2])
+    assert np.all(traj.positions[:, tips, 2] > 0.0)
     np.testing.assert_allclose(traj.positions[:, wrist], np.broadcast_to(traj.positions[0, wrist], (traj.n_frames, 3)))
 
 
@@ -78,7 +81,7 @@ def test_surface_points_are_on_the_hand_and_move_with_it(settings: Settings) -> 
     assert 600 <= traj.surface.shape[1] <= 1200
     moved = np.linalg.norm(traj.surface[-1] - traj.surface[0], axis=1)
     assert moved.max() > 0.05  # fingertip surfaces travel several centimetres
-    assert np.mean(moved > 0.005) > 0.2  # the fingers move (palm and wrist, most of the area, stay)
+    assert np.mean(moved > 0.005) > 0.15  # the fingers move (bracket, palm and wrist, most of the area, stay)
 
 
 def test_gravity_option_changes_the_closure(settings: Settings) -> None:
@@ -91,8 +94,9 @@ def test_gravity_option_changes_the_closure(settings: Settings) -> None:
 # --- adaptivity: one finger blocked at its proximal link ---------------------------------------------------
 
 ADAPTIVE_CASES = {
-    # hand: (blocked finger prefix, proximal body, proximal joint, distal joint, other fingers' prefixes)
-    "pisa_iit_softhand": ("index", "index_prox", "index_prox_1", "index_dist_1", ("middle", "ring", "little")),
+    # hand: (proximal body, its distance along the link [m], proximal joint, distal joint, other fingers)
+    "pisa_iit_softhand": ("index_prox", 0.004, "index_prox_1", "index_dist_1", ("middle", "ring", "little")),
+    "sdm_hand": ("f1_proximal", 0.03, "f1_proximal", "f1_distal", ("f2", "f3", "f4")),
 }
 
 
@@ -115,7 +119,7 @@ def _close(hand: HandModel) -> dict[str, float]:
 
 @pytest.mark.parametrize("name", sorted(ADAPTIVE_CASES))
 def test_blocked_finger_keeps_wrapping_and_others_close_as_in_free_space(name: str, settings: Settings) -> None:
-    finger, prox_body, prox_joint, dist_joint, others = ADAPTIVE_CASES[name]
+    prox_body, along, prox_joint, dist_joint, others = ADAPTIVE_CASES[name]
     free_hand = load_hand(name, settings)
     free = _close(free_hand)
 
@@ -123,7 +127,8 @@ def test_blocked_finger_keeps_wrapping_and_others_close_as_in_free_space(name: s
     model = free_hand.model
     data = prepare_data(free_hand, copy.copy(model))
     body = model.body(prox_body).id
-    centre = data.xpos[body] + data.xmat[body].reshape(3, 3) @ np.array([0.0, 0.0, 0.004])
+    radius = float(model.geom_size[model.body_geomadr[body], 0])
+    centre = data.xpos[body] + data.xmat[body].reshape(3, 3) @ np.array([0.0, 0.0, along])
     towards = data.xmat[body].reshape(3, 3) @ np.array([0.0, 1.0, 0.0])  # flexion curls toward local +y
 
     def add_obstacle(spec: mujoco.MjSpec) -> None:
@@ -131,7 +136,7 @@ def test_blocked_finger_keeps_wrapping_and_others_close_as_in_free_space(name: s
             name="obstacle",
             type=mujoco.mjtGeom.mjGEOM_BOX,
             size=[0.004, 0.003, 0.004],
-            pos=centre + towards * 0.0115,
+            pos=centre + towards * (radius + 0.0045),
         )
 
     manifest_path = free_hand.folder / "hand.toml"

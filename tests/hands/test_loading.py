@@ -50,7 +50,11 @@ def _with(**changes: object) -> dict[str, object]:
         (_with(model="h.obj"), "model", None),
         (_with(name="Bad Name"), "name", None),
         (_with(reference_points=[{"name": "a", "site": "s", "body": "b"}] * 4), "reference_points[0]", None),
-        (_with(reference_points=[{"name": f"p{k}", "site": "s"} for k in range(3)]), "reference_points", None),
+        (
+            _with(reference_points=[{"name": f"p{k}", "site": "s"} for k in range(3)]),
+            "reference_points",
+            None,
+        ),
         (
             _with(closure={"kind": "posture", "open": {"j1": 0.0}, "closed": {"j2": 1.0}}),
             "closure",
@@ -162,7 +166,10 @@ def _user_mjcf(tmp_path: Path, meshdir: str, file: str) -> Path:
     (folder / "hand.xml").write_text(MJCF_WITH_MESH.format(meshdir=meshdir, file=file))
     (folder / "hand.toml").write_text(
         POSTURE.format(
-            model="hand.xml", mount="mount", points="", open="j1 = 0.0, j2 = 0.0, j3 = 0.0",
+            model="hand.xml",
+            mount="mount",
+            points="",
+            open="j1 = 0.0, j2 = 0.0, j3 = 0.0",
             closed="j1 = -0.8, j2 = -0.8, j3 = 0.8",
         )
     )
@@ -183,8 +190,13 @@ def test_user_mjcf_with_mesh_loads_and_closes(tmp_path: Path, settings: Settings
 
 @pytest.mark.parametrize(
     ("meshdir", "file"),
-    [("meshes", "/etc/hostname"), ("meshes", "../../outside.stl"), ("/tmp", "palm.stl"), ("..", "palm.stl"),
-     ("meshes", "file:///etc/hostname")],  # fmt: skip
+    [
+        ("meshes", "/etc/hostname"),
+        ("meshes", "../../outside.stl"),
+        ("/tmp", "palm.stl"),
+        ("..", "palm.stl"),
+        ("meshes", "file:///etc/hostname"),
+    ],
 )
 def test_mjcf_paths_leaving_the_folder_are_rejected(
     tmp_path: Path, settings: Settings, meshdir: str, file: str
@@ -272,8 +284,11 @@ def test_third_party_urdf_hand_round_trip(tmp_path: Path, settings: Settings) ->
     toml = folder / "hand.toml"
     toml.write_text(
         POSTURE.format(
-            model="urdf/two_jaw.urdf", mount="base_link", points=points,
-            open="left_slide = 0.0, right_slide = 0.0", closed="left_slide = -0.04, right_slide = -0.04",
+            model="urdf/two_jaw.urdf",
+            mount="base_link",
+            points=points,
+            open="left_slide = 0.0, right_slide = 0.0",
+            closed="left_slide = -0.04, right_slide = -0.04",
         )
     )
     with pytest.raises(SoftsigError):
@@ -306,8 +321,9 @@ def test_urdf_mesh_escape_is_rejected(tmp_path: Path, settings: Settings, ref: s
     folder.mkdir()
     (folder / "h.urdf").write_text(URDF.replace("package://two_jaw_description/meshes/collision/base.stl", ref))
     (folder / "hand.toml").write_text(
-        POSTURE.format(model="h.urdf", mount="base_link", points="", open="left_slide = 0.0",
-                       closed="left_slide = -0.04")
+        POSTURE.format(
+            model="h.urdf", mount="base_link", points="", open="left_slide = 0.0", closed="left_slide = -0.04"
+        )
     )
     with pytest.raises(UnsafePath):
         load_hand(str(folder / "hand.toml"), settings)
