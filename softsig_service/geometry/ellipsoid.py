@@ -1,0 +1,406 @@
+"""Minimum-volume enclosing ellipsoid (MVEE) of a point set, by Khachiyan's algorithm.
+
+Pure numpy, no I/O. Points are in the caller's frame and unit (for the closure signature: the hand frame [m]).
+An ellipsoid is ``E = {x : (x - c)^T A (x - c) <= 1}`` with centre ``c`` [m] and shape matrix ``A`` [1/m^2]
+(symmetric positive definite); its semi-axes are ``a_k = 1 / sqrt(eig_k(A))`` [m] along the eigenvectors of A.
+
+The algorithm
+-------------
+The MVEE's dual is ``max_u log det X(u)``, ``X(u) = sum_j u_j q_j q_j^T`` over the simplex, with the lifted
+points ``q_j = (p_j, 1)`` in R^(d+1) (Khachiyan 1996). With ``M_j(u) = q_j^T X(u)^-1 q_j`` (so that
+``sum_j u_j M_j = d + 1``)
+we iterate until the Todd–Yildirim optimality conditions hold to the tolerance ``tol``::
+
+    max_j M_j <= (1 + tol) (d + 1)            (every point inside the lifted ellipsoid, to tol)
+    min_{j: u_j > 0} M_j >= (1 - tol) (d + 1)  (every support point on its boundary, to tol)
+
+and return ``c = sum_j u_j p_j``, ``A = (1/d) (sum_j u_j p_j p_j^T - c c^T)^-1``. A step is one of
+
+* Khachiyan's step (Frank–Wolfe with exact line search) toward the most violating point outside the support;
+* a Newton step on the current support (the Hessian of log det X is ``-(K∘K)``, ``K = Q X^-1 Q^T``), damped as
+  for a self-concordant function and shortened at the simplex boundary, where the blocking point leaves the
+  support (the role of Todd–Yildirim's "drop" away step).
+
+The Newton steps make the tail quadratically convergent: on 6 points in 3-D the conditions are met to 1e-7 in
+about 5 (at most about 10) iterations, where plain Khachiyan needs tens to hundreds. Before iterating the
+points are centred, scaled and whitened (an affine map, under which the MVEE is equivariant), so the lifted
+matrices are well conditioned however thin or far from the origin the cloud is; the result is mapped back.
+
+After convergence ``A`` is divided by ``max_j (p_j - c)^T A (p_j - c)`` (>= 1), so every input point lies in E
+exactly, up to round-off; this enlarges E by a factor of at most ``sqrt(1 + tol (d + 1) / d)`` in each
+semi-axis. If ``max_iter`` is reached first, the same rescaling still gives an enclosing ellipsoid,
+``converged`` is False and ``gap`` says how far from optimal it is.
+
+Coplanar / collinear points (the fallback)
+-------------------------------------------
+Let ``s_1 >= ... >= s_d`` be the root-mean-square extents of the centred points along their principal
+directions [m]. A direction with ``s_k < lift_epsilon * s_1`` is *missing* (the points are, to that relative
+precision, coplanar or collinear and have no finite-volume MVEE). The cloud is then lifted: every point ``p``
+is replaced by the pairs ``p + h v_k`` and ``p - h v_k`` for each missing unit direction ``v_k``, with
+``h = lift_epsilon * s_1`` [m]. The original points are midpoints of lifted ones, so they stay inside E, and E
+has a semi-axis of order ``h`` along each missing direction. ``h`` is reported as ``lifted_epsilon`` [m] (0.0
+when nothing was lifted) and the number of missing directions as ``n_lifted``. The lifted set is a product, so
+in the plane (on the line) E keeps the centre and axes of the plane's minimum ellipse (of the segment), scaled
+by exactly sqrt(3/2) (sqrt(3) for a line): a property of the MVEE of a flat 3-D set, not an error.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from softsig_service.errors import InvalidInput
+from softsig_service.geometry.pca import orient_axes
+
+DEFAULT_TOL = 1e-7
+"""Default Todd–Yildirim tolerance of the optimality conditions (relative, dimensionless)."""
+MAX_TOL = 1e-7
+"""Loosest accepted tolerance (DESIGN §4: <= 1e-7)."""
+MIN_TOL = 1e-13
+"""Tightest accepted tolerance: below this, round-off can keep the conditions from ever being met."""
+DEFAULT_MAX_ITER = 500
+"""Default iteration cap (6 points in 3-D need about 5-10 iterations; lifted sets of 24 points about 30)."""
+DEFAULT_LIFT_EPSILON = 1e-6
+"""Default relative lift for coplanar/collinear points (fraction of the cloud's largest RMS extent)."""
+MIN_LIFT_EPSILON = 1e-9
+MAX_LIFT_EPSILON = 1e-2
+COINCIDENT_RTOL = 1e-12
+"""Points whose spread is below this fraction of their coordinates' magnitude are one point (no ellipsoid)."""
+
+_RIDGE = 1e-12  # added to the Newton system's diagonal: keeps it solvable when the support exceeds (d+1)(d+2)/2
+_DAMPING_THRESHOLD = 0.25  # Newton decrement above which the step is damped by 1 / (1 + decrement)
+
+
+@dataclass(frozen=True, eq=False)
+class Ellipsoid:
+    """``E = {x : (x - center)^T shape (x - center) <= 1}`` with its Khachiyan diagnostics.
+
+    Attributes:
+        center: (d,) centre c [m].
+        shape: (d, d) symmetric positive-definite matrix A [1/m^2].
+        semi_axes: (d,) semi-axis lengths a_k = 1 / sqrt(eig_k(A)) [m], descending.
+        axes: (d, d) unit eigenvectors of A as *columns*: ``axes[:, k]`` carries ``semi_axes[k]``; each
+            column's sign follows :func:`~softsig_service.geometry.pca.orient_axes`.
+        iterations: Khachiyan/Newton iterations taken.
+        converged: whether the optimality conditions were met to ``tol`` within ``max_iter``.
+        gap: the achieved Todd–Yildirim measure (dimensionless; <= tol when converged).
+        lifted_epsilon: lift h [m] applied along missing directions (0.0 if the points span d dimensions).
+        n_lifted: number of missing directions that were lifted (0 for a full-dimensional cloud).
+    """
+
+    center: NDArray[np.float64]
+    shape: NDArray[np.float64]
+    semi_axes: NDArray[np.float64]
+    axes: NDArray[np.float64]
+    iterations: int
+    converged: bool
+    gap: float
+    lifted_epsilon: float
+    n_lifted: int
+
+    @property
+    def dim(self) -> int:
+        """Dimension d of the space."""
+        return int(self.center.shape[0])
+
+    @property
+    def volume(self) -> float:
+        """Volume [m^d]: that of the unit d-ball times the product of the semi-axes."""
+        d = self.dim
+        unit_ball = math.pi ** (d / 2) / math.gamma(d / 2 + 1)
+        return float(unit_ball * np.prod(self.semi_axes))
+
+    def inverse_shape(self) -> NDArray[np.float64]:
+        """A^-1 [m^2], built from the eigen-decomposition (better conditioned than inverting A)."""
+        r = self.axes
+        return np.asarray((r * self.semi_axes**2) @ r.T, dtype=np.float64)
+
+    def half_width(self, direction: ArrayLike) -> float:
+        """Half-width of E along ``direction`` (normalised here) [m]: support function sqrt(r^T A^-1 r)."""
+        r = np.asarray(direction, dtype=np.float64)
+        norm = float(np.linalg.norm(r))
+        if r.shape != self.center.shape or not math.isfinite(norm) or norm == 0.0:
+            raise InvalidInput("direction must be a finite non-zero (d,) vector", field="direction")
+        r = r / norm
+        return float(np.sqrt(r @ self.inverse_shape() @ r))
+
+    def level(self, points: ArrayLike) -> NDArray[np.float64]:
+        """``(x - c)^T A (x - c)`` for each row x of ``points`` (K, d) (dimensionless; <= 1 inside E).
+
+        Evaluated as ``sum_k ((x - c) . axes[:, k] / semi_axes[k])^2``, which keeps its relative precision for
+        thin ellipsoids (the quadratic form in A loses round-off times cond(A)).
+        """
+        x = np.asarray(points, dtype=np.float64) - self.center
+        return np.asarray(np.sum((x @ self.axes / self.semi_axes) ** 2, axis=-1), dtype=np.float64)
+
+    def contains(self, points: ArrayLike, *, rtol: float = 1e-9) -> NDArray[np.bool_]:
+        """Whether each row of ``points`` (K, d) lies in E, with relative slack ``rtol`` on the level."""
+        return np.asarray(self.level(points) <= 1.0 + rtol)
+
+    def to_json_dict(self) -> dict[str, list[float] | list[list[float]]]:
+        """``{center [m], semi_axes [m], axes}``, axes as the list of d unit vectors (columns of ``axes``)."""
+        return {
+            "center": [float(v) for v in self.center],
+            "semi_axes": [float(v) for v in self.semi_axes],
+            "axes": [[float(v) for v in col] for col in self.axes.T],
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class EllipsoidBatch:
+    """MVEEs of B point sets, stacked (same fields as :class:`Ellipsoid` with a leading batch axis)."""
+
+    center: NDArray[np.float64]
+    shape: NDArray[np.float64]
+    semi_axes: NDArray[np.float64]
+    axes: NDArray[np.float64]
+    iterations: NDArray[np.int64]
+    converged: NDArray[np.bool_]
+    gap: NDArray[np.float64]
+    lifted_epsilon: NDArray[np.float64]
+    n_lifted: NDArray[np.int64]
+
+    def __len__(self) -> int:
+        return int(self.center.shape[0])
+
+    def __getitem__(self, index: int) -> Ellipsoid:
+        return Ellipsoid(
+            center=self.center[index],
+            shape=self.shape[index],
+            semi_axes=self.semi_axes[index],
+            axes=self.axes[index],
+            iterations=int(self.iterations[index]),
+            converged=bool(self.converged[index]),
+            gap=float(self.gap[index]),
+            lifted_epsilon=float(self.lifted_epsilon[index]),
+            n_lifted=int(self.n_lifted[index]),
+        )
+
+
+def mvee(
+    points: ArrayLike,
+    *,
+    tol: float = DEFAULT_TOL,
+    max_iter: int = DEFAULT_MAX_ITER,
+    lift_epsilon: float = DEFAULT_LIFT_EPSILON,
+) -> Ellipsoid:
+    """Minimum-volume ellipsoid enclosing the rows of ``points`` (N, d) [m], N >= d + 1.
+
+    See the module docstring for the algorithm, ``tol`` (in [1e-13, 1e-7], default 1e-7), ``max_iter`` and the
+    coplanar fallback ``lift_epsilon`` (relative, in [1e-9, 1e-2], default 1e-6). Raises :class:`InvalidInput`
+    for a wrong shape, too few points, non-finite values, coincident points or out-of-range parameters.
+    """
+    arr = _as_float_array(points)
+    if arr.ndim != 2:
+        raise InvalidInput("points must have shape (N, d)", field="points", value=list(arr.shape))
+    return mvee_batch(arr[None], tol=tol, max_iter=max_iter, lift_epsilon=lift_epsilon)[0]
+
+
+def mvee_batch(
+    points: ArrayLike,
+    *,
+    tol: float = DEFAULT_TOL,
+    max_iter: int = DEFAULT_MAX_ITER,
+    lift_epsilon: float = DEFAULT_LIFT_EPSILON,
+) -> EllipsoidBatch:
+    """MVEE of each of B point sets ``points`` (B, N, d) [m], vectorised over the batch (see :func:`mvee`)."""
+    x = _as_float_array(points)
+    _check_params(x, tol, max_iter, lift_epsilon)
+    b, n, d = x.shape
+
+    # Centre and scale each frame (normalised coordinates y, O(1)); detect coincident and flat clouds.
+    mean = x.mean(axis=1)
+    xc = x - mean[:, None, :]
+    scale = np.abs(xc).max(axis=(1, 2))
+    magnitude = np.abs(x).max(axis=(1, 2))
+    coincident = ~(scale > COINCIDENT_RTOL * magnitude)
+    if np.any(coincident):
+        frame = int(np.argmax(coincident))
+        raise InvalidInput(
+            "the points coincide: an ellipsoid needs points spanning at least a line",
+            field="points" if b == 1 else f"points[{frame}]",
+            value=float(scale[frame]),
+        )
+    y = xc / scale[:, None, None]
+    eigval, eigvec = np.linalg.eigh(np.einsum("bni,bnj->bij", y, y) / n)
+    rms = np.sqrt(np.clip(eigval, 0.0, None))  # ascending
+    missing = rms < lift_epsilon * rms[:, -1:]
+    n_missing = missing.sum(axis=1)
+    h = lift_epsilon * rms[:, -1]  # lift distance in normalised units
+
+    center_y = np.empty((b, d))
+    cov_y = np.empty((b, d, d))
+    shape_y = np.empty((b, d, d))
+    iterations = np.zeros(b, dtype=np.int64)
+    converged = np.zeros(b, dtype=bool)
+    gap = np.zeros(b)
+    for m in np.unique(n_missing):
+        idx = np.flatnonzero(n_missing == m)
+        pts = y[idx]
+        if m > 0:
+            # missing directions are the first m eigenvectors (smallest extents): lift +-h along each
+            dirs = eigvec[idx][:, :, :m].transpose(0, 2, 1)  # (g, m, d)
+            offsets = h[idx, None, None] * dirs
+            pts = np.concatenate(
+                [pts[:, None, :, :] + offsets[:, :, None, :], pts[:, None, :, :] - offsets[:, :, None, :]],
+                axis=1,
+            ).reshape(len(idx), 2 * int(m) * n, d)
+        c_g, cov_g, shape_g, it_g, conv_g, gap_g = _mvee_normalised(pts, tol, max_iter)
+        center_y[idx] = c_g
+        cov_y[idx] = cov_g
+        shape_y[idx] = shape_g
+        iterations[idx] = it_g
+        converged[idx] = conv_g
+        gap[idx] = gap_g
+
+    # Back to the caller's coordinates, x = mean + scale * y. The axes are the eigenvectors of A^-1; each squared
+    # semi-axis is taken from the operator in which it is a *large* eigenvalue: v^T A^-1 v for the long axes,
+    # 1 / (v^T A v) for the short ones, so that a thin ellipsoid's short axes keep full relative precision
+    # (eigenvalues are accurate to round-off times the largest one).
+    var, vec = np.linalg.eigh(cov_y)  # ascending
+    var, vec = var[:, ::-1], vec[:, :, ::-1]
+    from_shape = 1.0 / np.einsum("bik,bij,bjk->bk", vec, shape_y, vec)
+    short = var < np.sqrt(var[:, :1] * var[:, -1:])
+    semi_axes = scale[:, None] * np.sqrt(np.where(short, from_shape, var))
+    order = np.argsort(-semi_axes, axis=1, kind="stable")  # re-sort: near-ties may swap by round-off
+    semi_axes = np.take_along_axis(semi_axes, order, axis=1)
+    vec = np.take_along_axis(vec, order[:, None, :], axis=2)
+    axes = orient_axes(vec.transpose(0, 2, 1)).transpose(0, 2, 1)
+    shape = (axes / semi_axes[:, None, :] ** 2) @ axes.transpose(0, 2, 1)
+    return EllipsoidBatch(
+        center=mean + scale[:, None] * center_y,
+        shape=shape,
+        semi_axes=semi_axes,
+        axes=axes,
+        iterations=iterations,
+        converged=converged,
+        gap=gap,
+        lifted_epsilon=np.where(n_missing > 0, h * scale, 0.0),
+        n_lifted=n_missing.astype(np.int64),
+    )
+
+
+def _as_float_array(points: ArrayLike) -> NDArray[np.float64]:
+    try:
+        return np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInput("points must be an array of numbers", field="points") from exc
+
+
+def _check_params(x: NDArray[np.float64], tol: float, max_iter: int, lift_epsilon: float) -> None:
+    if x.ndim != 3 or x.shape[2] < 1:
+        raise InvalidInput("points must have shape (B, N, d)", field="points", value=list(x.shape))
+    b, n, d = x.shape
+    if b < 1:
+        raise InvalidInput("at least one point set is needed", field="points", value=list(x.shape))
+    if n < d + 1:
+        raise InvalidInput(f"an ellipsoid in {d}-D needs at least {d + 1} points", field="points", value=n)
+    if not np.all(np.isfinite(x)):
+        where = np.argwhere(~np.isfinite(x))[0]
+        field = "points[" + "][".join(str(int(i)) for i in (where[1:] if b == 1 else where)) + "]"
+        raise InvalidInput("points must be finite (no NaN or infinity)", field=field)
+    if not (MIN_TOL <= tol <= MAX_TOL):
+        raise InvalidInput(f"tol must be in [{MIN_TOL:g}, {MAX_TOL:g}]", field="tol", value=tol)
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 0:
+        raise InvalidInput("max_iter must be a non-negative integer", field="max_iter", value=max_iter)
+    if not (MIN_LIFT_EPSILON <= lift_epsilon <= MAX_LIFT_EPSILON):
+        raise InvalidInput(
+            f"lift_epsilon must be in [{MIN_LIFT_EPSILON:g}, {MAX_LIFT_EPSILON:g}]",
+            field="lift_epsilon",
+            value=lift_epsilon,
+        )
+
+
+def _mvee_normalised(
+    y: NDArray[np.float64], tol: float, max_iter: int
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.int64],
+    NDArray[np.bool_],
+    NDArray[np.float64],
+]:
+    """MVEE of full-dimensional O(1)-scaled sets ``y`` (B, N, d): (c, A^-1, A, iterations, converged, gap)."""
+    n, d = y.shape[1:]
+    # Whiten (affine-equivariant problem): z = (y - m) W with identity covariance.
+    m = y.mean(axis=1)
+    yc = y - m[:, None, :]
+    lam, vec = np.linalg.eigh(np.einsum("bni,bnj->bij", yc, yc) / n)
+    w = vec / np.sqrt(lam)[:, None, :]  # (B, d, d): z = yc @ w
+    z = yc @ w
+    u, iterations, converged, gap = _khachiyan(z, tol, max_iter)
+    c_z = np.einsum("bn,bni->bi", u, z)
+    zc = z - c_z[:, None, :]
+    cov_z = d * np.einsum("bn,bni,bnj->bij", u, zc, zc)  # A_z^-1
+    level = np.einsum("bni,bij,bnj->bn", zc, np.linalg.inv(cov_z), zc).max(axis=1)
+    cov_z *= np.maximum(level, 1.0)[:, None, None]  # every point inside: (z-c)^T A_z (z-c) <= 1
+    # back to y = m + z w^-1 with w^-1 = diag(sqrt(lam)) vec^T:
+    # c_y = m + c_z w^-1 and A_y^-1 = w^-T A_z^-1 w^-1
+    w_inv = np.sqrt(lam)[:, :, None] * vec.transpose(0, 2, 1)
+    c_y = m + (c_z[:, None, :] @ w_inv)[:, 0, :]
+    cov_y = w_inv.transpose(0, 2, 1) @ cov_z @ w_inv
+    shape_y = w @ np.linalg.inv(cov_z) @ w.transpose(0, 2, 1)  # A_y = w A_z w^T, A_z well conditioned
+    cov_y = 0.5 * (cov_y + cov_y.transpose(0, 2, 1))
+    shape_y = 0.5 * (shape_y + shape_y.transpose(0, 2, 1))
+    return c_y, cov_y, shape_y, iterations, converged, gap
+
+
+def _khachiyan(
+    z: NDArray[np.float64], tol: float, max_iter: int
+) -> tuple[NDArray[np.float64], NDArray[np.int64], NDArray[np.bool_], NDArray[np.float64]]:
+    """Dual weights u (B, N) of the MVEEs of whitened sets ``z`` (B, N, d); see the module docstring."""
+    b, n, d = z.shape
+    d1 = d + 1
+    q = np.concatenate([z, np.ones((b, n, 1))], axis=2)  # lifted points, (B, N, d+1)
+    qt = q.transpose(0, 2, 1)
+    u = np.full((b, n), 1.0 / n)
+    rows = np.arange(b)
+    eye = np.eye(n)
+    iterations = np.zeros(b, dtype=np.int64)
+    for step in range(max_iter + 1):
+        x = (qt * u[:, None, :]) @ q
+        kern = q @ np.linalg.inv(x) @ qt  # K = Q X^-1 Q^T, (B, N, N)
+        mvals = np.diagonal(kern, axis1=1, axis2=2)
+        support = u > 0.0
+        m_out = np.where(support, -np.inf, mvals)
+        j_out = m_out.argmax(axis=1)
+        eps_out = m_out[rows, j_out] / d1 - 1.0
+        eps_in = np.where(support, mvals, -np.inf).max(axis=1) / d1 - 1.0
+        eps_low = 1.0 - np.where(support, mvals, np.inf).min(axis=1) / d1
+        gap = np.maximum(np.maximum(eps_out, eps_in), eps_low)
+        active = ~(gap <= tol)
+        if step == max_iter or not np.any(active):
+            break
+        iterations += active
+        khachiyan_step = active & (eps_out >= np.maximum(eps_in, eps_low))
+        newton_step = active & ~khachiyan_step
+
+        # Khachiyan (Frank-Wolfe) step toward the most violating point outside the support.
+        m_j = mvals[rows, j_out]
+        beta = np.where(khachiyan_step, (m_j - d1) / (d1 * (m_j - 1.0)), 0.0)
+        u_k = u * (1.0 - beta)[:, None]
+        u_k[rows, j_out] += beta
+
+        # Newton step on the support: maximise log det X on {u_S : sum u = 1}; with G = K∘K (G u = M),
+        # the Newton point is 2u - G^-1 1 / (1^T G^-1 1).
+        gram = np.where(support[:, :, None] & support[:, None, :], kern * kern, eye) + _RIDGE * eye
+        g1 = np.linalg.solve(gram, support.astype(np.float64)[:, :, None])[:, :, 0]
+        delta = u - g1 / g1.sum(axis=1, keepdims=True)
+        decrement = np.sqrt(np.maximum((delta[:, None, :] @ gram @ delta[:, :, None])[:, 0, 0], 0.0))
+        alpha = np.where(decrement > _DAMPING_THRESHOLD, 1.0 / (1.0 + decrement), 1.0)
+        shrinking = support & (delta < 0.0)
+        ratio = np.where(shrinking, u / np.where(shrinking, -delta, 1.0), np.inf)
+        j_block = ratio.argmin(axis=1)
+        blocked = ratio[rows, j_block] <= alpha
+        alpha = np.minimum(alpha, ratio[rows, j_block])
+        u_n = u + alpha[:, None] * delta
+        u_n[rows, j_block] = np.where(blocked, 0.0, u_n[rows, j_block])
+        u_n = np.clip(u_n, 0.0, None)
+        u_n /= u_n.sum(axis=1, keepdims=True)
+
+        u = np.where(khachiyan_step[:, None], u_k, np.where(newton_step[:, None], u_n, u))
+    return u, iterations, ~active, gap

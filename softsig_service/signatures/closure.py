@@ -1,0 +1,427 @@
+"""The closure signature (CS) of a hand: the axis along which the hand closes (DESIGN §4).
+
+Pure math, no I/O. Input positions are ``P[t, i, :]`` [m], reference point ``i`` at sample ``t`` in the *hand
+frame* (origin at the flange, +z = approach, +x across the palm; DESIGN §3), t = 0 the open hand, t = T-1 the
+closed hand. Every vector of a :class:`ClosureSignature` is in the hand frame.
+
+Three methods, one result type:
+
+* **ellipsoid** (:func:`ellipsoid_closure_signature`) — the five steps of DESIGN §4: E_0, E_T = minimum-volume
+  enclosing ellipsoids of the first and last frames (:func:`~softsig_service.geometry.ellipsoid.mvee`); along
+  each axis r_k of E_0 the half-width ``a_k(t) = sqrt(r_k^T A_t^-1 r_k)`` [m];
+  ``delta_k = (a_k(T) - a_k(0)) / a_k(0)`` (dimensionless, negative = the hand narrows along r_k); the CS is
+  the r_k with the largest |delta_k|, anchored at c_0, magnitude delta_k*. Also the centre drift
+  ``r_k^T (c_T - c_0)`` [m]. Only E_0 and E_T are fitted; :func:`ellipsoid_axis_series` gives a_k(t) and the
+  drift for every frame. Being relative, delta_k is large along a thin axis of E_0: a nearly flat open hand
+  tends to get its normal as the CS, and a coplanar one (lifted, see ``extras["lifted_epsilon"]``) a delta
+  of order 1 / lift_epsilon along it.
+* **pca** (:func:`pca_closure_signature`) — displacements ``D = P[t] - P[0]`` for t = 1..T-1 (the identically
+  zero t = 0 block is left out) and every point, stacked; principal directions of their second moment about
+  zero (or, optionally, about their mean). deformation_k = RMS displacement along direction k [m] (square root
+  of the second moment), magnitude = that of the first direction [m] (>= 0: a direction of motion, not a
+  signed change); anchor = centroid of P[0]. Explained-variance ratios are reported.
+* **mesh** (:func:`mesh_closure_signature`) — least-squares affine map ``x_T = F x_0 + b`` between the first
+  and last frames of a dense set of hand-surface points (falling back to the reference points when the
+  trajectory has no surface), polar decomposition ``F = R U`` (by SVD, F = W S V^T, U = V S V^T, R = W V^T);
+  the CS is the eigenvector of U whose stretch lambda has the largest |ln lambda|. deformation_k = ln lambda_k
+  (Hencky strain, dimensionless, negative = contraction) and magnitude = ln lambda_k*; anchor = centroid of
+  the initial points. The stretches and the fit residual [m] are reported.
+
+Conventions common to the three:
+
+* ``axes`` is a (3, 3) array whose **rows** are unit vectors, ordered by |deformation| descending (ties keep
+  the method's own order), so ``axes[0]`` is the CS ``axis``, ``deformation[0]`` its value and
+  ``magnitude == deformation[0]``. The rows are not necessarily a right-handed triad.
+* Sign rule (DESIGN §4), applied to every row: a non-negative component on hand +x; if the vector is
+  perpendicular to x (|v_x| <= 1e-9), a positive component on +y; if perpendicular to x and y, on +z.
+* ``distinctness = |deformation[0]| / |deformation[1]|``; when the second is 0 (or the ratio exceeds it) it
+  is :data:`DISTINCTNESS_CAP` (1e6); when all deformations are 0 it is 1.0. ``ambiguous`` means
+  ``distinctness < 1.1``. "0" means at or below the method's numerical resolution, reported as
+  ``extras["resolution"]``: 10 x tol for the ellipsoid deltas, 1e-12 x the largest |coordinate| [m] for pca,
+  1e-9 for the mesh ln-stretches (so a hand that does not move gets distinctness 1.0, ambiguous, rather than
+  a ratio of round-off errors).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from softsig_service.errors import InvalidInput, InvalidTrajectory
+from softsig_service.geometry.ellipsoid import (
+    DEFAULT_LIFT_EPSILON,
+    DEFAULT_MAX_ITER,
+    DEFAULT_TOL,
+    Ellipsoid,
+    mvee_batch,
+)
+from softsig_service.geometry.pca import MomentOrigin, orient_axes, principal_components
+from softsig_service.hands.trajectory import MIN_POINTS, ClosureTrajectory
+
+Method = Literal["ellipsoid", "pca", "mesh"]
+METHODS: tuple[Method, ...] = ("ellipsoid", "pca", "mesh")
+MeshSource = Literal["surface", "reference_points"]
+
+DISTINCTNESS_CAP = 1e6
+"""Reported distinctness when the second-largest |deformation| is 0 (or the ratio would exceed it)."""
+AMBIGUITY_THRESHOLD = 1.1
+"""A CS whose distinctness is below this is flagged ``ambiguous`` (DESIGN §4)."""
+ELLIPSOID_RESOLUTION_FACTOR = 10.0
+"""Ellipsoid deltas with |delta| <= this x tol are below the MVEE's precision and count as 0 in distinctness."""
+PCA_RESOLUTION_RTOL = 1e-12
+"""PCA RMS displacements <= this x max |coordinate| [m] are round-off and count as 0 in distinctness."""
+MESH_RESOLUTION = 1e-9
+"""Mesh ln-stretches with |ln lambda| <= this are round-off of the fit and count as 0 in distinctness."""
+DEGENERATE_RTOL = 1e-9
+"""Mesh method: smallest / largest singular value of the centred initial points must exceed this."""
+
+
+@dataclass(frozen=True, eq=False)
+class ClosureSignature:
+    """The closure signature of one closure, by one method, in the hand frame.
+
+    Attributes:
+        method: "ellipsoid", "pca" or "mesh".
+        params: the method's parameters (JSON-ready), e.g. ``{"tol", "max_iter", "lift_epsilon"}``.
+        axis: (3,) unit CS axis in the hand frame, sign rule of DESIGN §4 (== ``axes[0]``).
+        anchor: (3,) point the axis passes through [m], hand frame (c_0 or the initial centroid).
+        magnitude: ``deformation[0]``: ellipsoid delta (relative change of half-width, dimensionless, signed);
+            pca RMS displacement [m] (>= 0); mesh ln-stretch (dimensionless, signed).
+        deformation: (3,) the per-axis values, same unit as ``magnitude``, aligned with the rows of ``axes``.
+        axes: (3, 3) unit vectors as **rows**, ordered by |deformation| descending.
+        distinctness: |deformation[0]| / |deformation[1]| (capped at :data:`DISTINCTNESS_CAP`).
+        initial_ellipsoid, final_ellipsoid: E_0 and E_T (ellipsoid method only, else None).
+        extras: method-specific, JSON-ready diagnostics (see :meth:`to_json_dict`).
+        frame_id: always "hand".
+    """
+
+    method: Method
+    params: dict[str, Any]
+    axis: NDArray[np.float64]
+    anchor: NDArray[np.float64]
+    magnitude: float
+    deformation: NDArray[np.float64]
+    axes: NDArray[np.float64]
+    distinctness: float
+    initial_ellipsoid: Ellipsoid | None = None
+    final_ellipsoid: Ellipsoid | None = None
+    extras: dict[str, Any] = field(default_factory=dict)
+    frame_id: str = "hand"
+
+    @property
+    def ambiguous(self) -> bool:
+        """True when the CS is not distinct: ``distinctness < 1.1``."""
+        return self.distinctness < AMBIGUITY_THRESHOLD
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON form: method, frame_id, axis, anchor [m], magnitude, deformation, axes (3 unit vectors),
+        distinctness, ambiguous, params, extras, and for the ellipsoid method initial_ellipsoid and
+        final_ellipsoid, each ``{center [m], semi_axes [m], axes (3 unit vectors)}``.
+
+        ``extras`` always has ``magnitude_unit`` ("1" or "m"), ``resolution`` (same unit), ``n_frames`` and
+        ``n_points``, plus ellipsoid:
+        ``centre_drift`` [m], ``half_width_initial`` [m], ``half_width_final`` [m] (per row of axes),
+        ``lifted_epsilon`` {initial, final} [m], ``solver`` {initial, final: {iterations, converged, gap}};
+        pca: ``explained_variance_ratio`` (per row of axes), ``rms_displacement`` [m], ``n_displacements``;
+        mesh: ``stretches`` (per row of axes), ``fit_residual_rms`` [m], ``fit_residual_max`` [m], ``det_F``,
+        ``rotation_angle`` [rad], ``affine_matrix`` (3 rows), ``affine_offset`` [m].
+        """
+        out: dict[str, Any] = {
+            "method": self.method,
+            "frame_id": self.frame_id,
+            "axis": _floats(self.axis),
+            "anchor": _floats(self.anchor),
+            "magnitude": float(self.magnitude),
+            "deformation": _floats(self.deformation),
+            "axes": [_floats(row) for row in self.axes],
+            "distinctness": float(self.distinctness),
+            "ambiguous": self.ambiguous,
+            "params": dict(self.params),
+        }
+        if self.initial_ellipsoid is not None and self.final_ellipsoid is not None:
+            out["initial_ellipsoid"] = self.initial_ellipsoid.to_json_dict()
+            out["final_ellipsoid"] = self.final_ellipsoid.to_json_dict()
+        out["extras"] = dict(self.extras)
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class EllipsoidAxisSeries:
+    """Per-frame half-widths of E_t along the initial axes r_k (the ellipsoid method's step 4).
+
+    Attributes:
+        axes: (3, 3) the r_k as rows (sign rule applied), ordered by E_0's semi-axes descending.
+        half_widths: (T, 3) a_k(t) = sqrt(r_k^T A_t^-1 r_k) [m].
+        relative_change: (T, 3) a_k(t) / a_k(0) - 1 (dimensionless); the last row is the method's delta_k.
+        centre_drift: (T, 3) r_k^T (c_t - c_0) [m].
+        iterations, converged, lifted_epsilon [m]: (T,) solver diagnostics of each E_t.
+    """
+
+    axes: NDArray[np.float64]
+    half_widths: NDArray[np.float64]
+    relative_change: NDArray[np.float64]
+    centre_drift: NDArray[np.float64]
+    iterations: NDArray[np.int64]
+    converged: NDArray[np.bool_]
+    lifted_epsilon: NDArray[np.float64]
+
+
+def compute_closure_signature(
+    traj: ClosureTrajectory,
+    method: Method,
+    *,
+    tol: float = DEFAULT_TOL,
+    max_iter: int = DEFAULT_MAX_ITER,
+    lift_epsilon: float = DEFAULT_LIFT_EPSILON,
+    pca_about: MomentOrigin = "zero",
+) -> ClosureSignature:
+    """Closure signature of ``traj`` by ``method``.
+
+    ``tol``, ``max_iter`` and ``lift_epsilon`` configure the ellipsoid method's MVEE (see
+    :mod:`softsig_service.geometry.ellipsoid`), ``pca_about`` the pca method ("zero", the DESIGN default, or
+    "mean"); parameters of the other methods are ignored. The mesh method uses ``traj.surface`` when present
+    and otherwise the reference points (``params["source"]`` says which). Raises :class:`InvalidInput` for an
+    unknown method and :class:`InvalidTrajectory` for unusable positions.
+    """
+    if method == "ellipsoid":
+        return ellipsoid_closure_signature(traj.positions, tol=tol, max_iter=max_iter, lift_epsilon=lift_epsilon)
+    if method == "pca":
+        return pca_closure_signature(traj.positions, about=pca_about)
+    if method == "mesh":
+        if traj.surface is not None:
+            return mesh_closure_signature(traj.surface, source="surface")
+        return mesh_closure_signature(traj.positions, source="reference_points")
+    raise InvalidInput("unknown closure-signature method", field="method", value=method, choices=METHODS)
+
+
+def ellipsoid_closure_signature(
+    positions: ArrayLike,
+    *,
+    tol: float = DEFAULT_TOL,
+    max_iter: int = DEFAULT_MAX_ITER,
+    lift_epsilon: float = DEFAULT_LIFT_EPSILON,
+) -> ClosureSignature:
+    """Ellipsoid-method CS of ``positions`` (T, N, 3) [m], hand frame; fits only E_0 and E_T."""
+    p = _check_positions(positions, "positions", min_points=MIN_POINTS)
+    fits = mvee_batch(p[[0, -1]], tol=tol, max_iter=max_iter, lift_epsilon=lift_epsilon)
+    e0, e_t = fits[0], fits[1]
+    r = e0.axes.T  # rows r_k, E_0's semi-axes descending, sign rule applied
+    a0 = e0.semi_axes
+    a_t = np.sqrt(np.einsum("ki,ij,kj->k", r, e_t.inverse_shape(), r))
+    delta = (a_t - a0) / a0
+    drift = r @ (e_t.center - e0.center)
+    solver = {
+        name: {"iterations": e.iterations, "converged": e.converged, "gap": e.gap}
+        for name, e in (("initial", e0), ("final", e_t))
+    }
+    return _assemble(
+        "ellipsoid",
+        params={"tol": tol, "max_iter": max_iter, "lift_epsilon": lift_epsilon},
+        directions=r,
+        deformation=delta,
+        anchor=e0.center,
+        per_axis={"centre_drift": drift, "half_width_initial": a0, "half_width_final": a_t},
+        resolution=ELLIPSOID_RESOLUTION_FACTOR * tol,
+        extras={
+            "magnitude_unit": "1",
+            "lifted_epsilon": {"initial": e0.lifted_epsilon, "final": e_t.lifted_epsilon},
+            "solver": solver,
+            "n_frames": int(p.shape[0]),
+            "n_points": int(p.shape[1]),
+        },
+        initial_ellipsoid=e0,
+        final_ellipsoid=e_t,
+    )
+
+
+def ellipsoid_axis_series(
+    positions: ArrayLike,
+    *,
+    tol: float = DEFAULT_TOL,
+    max_iter: int = DEFAULT_MAX_ITER,
+    lift_epsilon: float = DEFAULT_LIFT_EPSILON,
+) -> EllipsoidAxisSeries:
+    """Fit E_t for every frame of ``positions`` (T, N, 3) [m]; measure it along E_0's axes (DESIGN §4, 4)."""
+    p = _check_positions(positions, "positions", min_points=MIN_POINTS)
+    fits = mvee_batch(p, tol=tol, max_iter=max_iter, lift_epsilon=lift_epsilon)
+    r = fits.axes[0].T  # rows
+    semi_sq = fits.semi_axes**2  # (T, 3)
+    # r_k^T A_t^-1 r_k with A_t^-1 = V_t diag(a_t^2) V_t^T
+    proj = np.einsum("ki,tij->tkj", r, fits.axes)  # (T, k, j) = r_k . v_tj
+    half = np.sqrt(np.einsum("tkj,tj->tk", proj**2, semi_sq))
+    drift = (fits.center - fits.center[0]) @ r.T
+    return EllipsoidAxisSeries(
+        axes=r,
+        half_widths=half,
+        relative_change=half / half[0] - 1.0,
+        centre_drift=drift,
+        iterations=fits.iterations,
+        converged=fits.converged,
+        lifted_epsilon=fits.lifted_epsilon,
+    )
+
+
+def pca_closure_signature(positions: ArrayLike, *, about: MomentOrigin = "zero") -> ClosureSignature:
+    """PCA-method CS of ``positions`` (T, N, 3) [m], hand frame: principal directions of the displacements."""
+    p = _check_positions(positions, "positions", min_points=MIN_POINTS)
+    disp = (p[1:] - p[0]).reshape(-1, 3)
+    pc = principal_components(disp, about=about)
+    return _assemble(
+        "pca",
+        params={"about": about},
+        directions=pc.directions.T,
+        deformation=pc.rms,
+        anchor=p[0].mean(axis=0),
+        per_axis={"explained_variance_ratio": pc.explained_variance_ratio},
+        resolution=PCA_RESOLUTION_RTOL * float(np.abs(p).max()),
+        extras={
+            "magnitude_unit": "m",
+            "rms_displacement": float(np.sqrt(np.mean(np.sum(disp**2, axis=1)))),
+            "n_displacements": int(disp.shape[0]),
+            "n_frames": int(p.shape[0]),
+            "n_points": int(p.shape[1]),
+        },
+    )
+
+
+def mesh_closure_signature(surface: ArrayLike, *, source: MeshSource = "surface") -> ClosureSignature:
+    """Mesh-method CS of ``surface`` (T, M, 3) [m], hand frame, from its first and last frames.
+
+    ``source`` ("surface" or "reference_points") only labels the result and the error fields. Raises
+    :class:`InvalidTrajectory` when the initial points do not span 3-D (the affine map is then
+    undetermined) or the fitted map squashes a direction to zero (a stretch of 0 has no logarithm).
+    """
+    if source not in ("surface", "reference_points"):
+        raise InvalidInput("unknown mesh source", field="source", value=source, choices=("surface", "reference_points"))
+    field_name = "surface" if source == "surface" else "positions"
+    s = _check_positions(surface, field_name, min_points=MIN_POINTS)
+    x0, x1 = s[0], s[-1]
+    m0, m1 = x0.mean(axis=0), x1.mean(axis=0)
+    y0, y1 = x0 - m0, x1 - m1
+    sv0 = np.linalg.svd(y0, compute_uv=False)
+    if not sv0[-1] > DEGENERATE_RTOL * sv0[0]:
+        raise InvalidTrajectory(
+            "the initial points are coplanar or collinear: the affine map of the mesh method is undetermined",
+            field=f"{field_name}[0]",
+            value=[float(v) for v in sv0],
+        )
+    ft, *_ = np.linalg.lstsq(y0, y1, rcond=None)
+    f = ft.T
+    b = m1 - f @ m0
+    resid = np.linalg.norm(x0 @ f.T + b - x1, axis=1)
+    w, stretch, vt = np.linalg.svd(f)
+    if not stretch[-1] > DEGENERATE_RTOL * stretch[0]:
+        raise InvalidTrajectory(
+            "the fitted affine map squashes a direction to zero (the closed points are coplanar)",
+            field=f"{field_name}[{s.shape[0] - 1}]",
+            value=[float(v) for v in stretch],
+        )
+    rot = w @ vt
+    cos_angle = float(np.clip((np.trace(rot) - 1.0) / 2.0, -1.0, 1.0))
+    return _assemble(
+        "mesh",
+        params={"source": source},
+        directions=vt,  # rows: eigenvectors of U = V S V^T
+        deformation=np.log(stretch),
+        anchor=m0,
+        per_axis={"stretches": stretch},
+        resolution=MESH_RESOLUTION,
+        extras={
+            "magnitude_unit": "1",
+            "fit_residual_rms": float(np.sqrt(np.mean(resid**2))),
+            "fit_residual_max": float(resid.max()),
+            "det_F": float(np.linalg.det(f)),
+            "rotation_angle": math.acos(cos_angle),
+            "affine_matrix": [_floats(row) for row in f],
+            "affine_offset": _floats(b),
+            "n_frames": int(s.shape[0]),
+            "n_points": int(s.shape[1]),
+        },
+    )
+
+
+def distinctness_ratio(deformation: ArrayLike, resolution: float = 0.0) -> float:
+    """|d_(1)| / |d_(2)| of the two largest |deformation| values, capped at :data:`DISTINCTNESS_CAP`.
+
+    Values with |d| <= ``resolution`` (same unit as ``deformation``) count as 0: 1.0 when every value does
+    (nothing distinguishes any axis), the cap when only the second does.
+    """
+    mags = np.sort(np.abs(np.asarray(deformation, dtype=np.float64)))[::-1]
+    first, second = float(mags[0]), float(mags[1])
+    if first <= resolution:
+        return 1.0
+    if second <= resolution or second * DISTINCTNESS_CAP <= first:
+        return DISTINCTNESS_CAP
+    return first / second
+
+
+def _assemble(
+    method: Method,
+    *,
+    params: dict[str, Any],
+    directions: NDArray[np.float64],
+    deformation: NDArray[np.float64],
+    anchor: NDArray[np.float64],
+    per_axis: dict[str, NDArray[np.float64]],
+    extras: dict[str, Any],
+    resolution: float,
+    initial_ellipsoid: Ellipsoid | None = None,
+    final_ellipsoid: Ellipsoid | None = None,
+) -> ClosureSignature:
+    """Order the axes by |deformation| descending, apply the sign rule and build the signature."""
+    order = np.argsort(-np.abs(deformation), kind="stable")
+    axes = orient_axes(directions[order])
+    deformation = np.asarray(deformation[order], dtype=np.float64)
+    # per-axis quantities that change sign with the axis (the centre drift) follow the flip
+    flips = np.sign(np.einsum("ki,ki->k", axes, directions[order]))
+    all_extras = dict(extras)
+    all_extras["resolution"] = float(resolution)
+    for key, values in per_axis.items():
+        vals = values[order] * flips if key == "centre_drift" else values[order]
+        all_extras[key] = _floats(vals)
+    return ClosureSignature(
+        method=method,
+        params=params,
+        axis=axes[0].copy(),
+        anchor=np.asarray(anchor, dtype=np.float64).copy(),
+        magnitude=float(deformation[0]),
+        deformation=deformation,
+        axes=axes,
+        distinctness=distinctness_ratio(deformation, resolution),
+        initial_ellipsoid=initial_ellipsoid,
+        final_ellipsoid=final_ellipsoid,
+        extras=all_extras,
+    )
+
+
+def _check_positions(positions: ArrayLike, field_name: str, *, min_points: int) -> NDArray[np.float64]:
+    """``positions`` as a finite (T >= 2, N >= min_points, 3) float array, else :class:`InvalidTrajectory`."""
+    try:
+        p = np.asarray(positions, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidTrajectory(f"{field_name} must be a (T, N, 3) array of numbers", field=field_name) from exc
+    if p.ndim != 3 or p.shape[2] != 3:
+        raise InvalidTrajectory(f"{field_name} must have shape (T, N, 3)", field=field_name, value=list(p.shape))
+    if p.shape[0] < 2:
+        raise InvalidTrajectory(
+            "at least 2 frames (open and closed) are needed", field=field_name, value=int(p.shape[0])
+        )
+    if p.shape[1] < min_points:
+        raise InvalidTrajectory(f"at least {min_points} points are needed", field=field_name, value=int(p.shape[1]))
+    finite = np.isfinite(p)
+    if not np.all(finite):
+        t, i, _ = (int(v) for v in np.argwhere(~finite)[0])
+        raise InvalidTrajectory(
+            f"{field_name} must be finite (no NaN or infinity)",
+            field=f"{field_name}[{t}][{i}]",
+            value=[float(v) if math.isfinite(v) else None for v in p[t, i]],
+        )
+    return p
+
+
+def _floats(values: ArrayLike) -> list[float]:
+    return [float(v) for v in np.asarray(values, dtype=np.float64).ravel()]
