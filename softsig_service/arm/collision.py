@@ -1,0 +1,642 @@
+"""Collision world of the UR5, the mounted hand, the table and one object (coal, through Pinocchio).
+
+Frames and units: the world frame is the UR5 ``base_link`` (z up); lengths in [m]; poses are 4x4 homogeneous
+transforms. The hand frame *is* the ``tool0`` frame (DESIGN §3): hand shapes are rigidly attached to it.
+
+What is in the world:
+
+* **Arm links**: the collision STL meshes of ``ur5_robot.urdf`` (loaded with
+  ``pinocchio.buildGeomFromUrdf``), each replaced by its **convex hull** (qhull, built once per process). The
+  hulls contain the meshes, so checks are conservative; on the UR5 the distances differ from the meshes' by
+  about 1 mm. Measured on the bare arm with the table: collisions ~6 µs with hulls vs ~0.6 ms with the
+  triangle meshes (slow against a half-space), distances ~9 µs vs ~6 ms.
+* **Table**: the half-space ``z <= table_height`` (``coal.Halfspace``): its top is the plane
+  ``z = table_height``.
+* **Object**: one shape (box, cylinder, sphere, ellipsoid or the convex hull of a vertex set) at a 4x4 pose.
+* **Hand**: a list of :class:`HandShape` primitives posed in the hand (= ``tool0``) frame.
+
+Which pairs are checked, and under which reason (``CollisionReport.reasons``):
+
+* ``"collision:self"``: the arm's link pairs that the SRDF (``srdf/ur5.srdf``) does not disable (27 -> 17
+  pairs), and every hand shape against ``base_link``, ``shoulder_link``, ``upper_arm_link``, ``forearm_link``,
+  ``wrist_1_link`` and ``wrist_2_link``. Hand shapes are not checked against ``wrist_3_link`` and ``ee_link``
+  (rigidly attached: the hand is bolted to that flange) nor against each other.
+* ``"collision:table"``: every arm link except ``base_link`` and ``shoulder_link`` (the base stands on the
+  table: its mesh reaches 3 mm below ``base_link``'s origin), and every hand shape, against the table.
+* ``"collision:object"``: every arm link and every hand shape against the object; the hand–object pairs can be
+  left out with ``ignore_hand_object=True`` (at a grasp pose the hand is meant to touch the object). The
+  object is never checked against the table (it rests on it).
+
+A pair counts as colliding when its shapes are closer than the security margin [m] (0: touching or
+penetrating): ``margin`` for object pairs, ``table_margin`` for table pairs and ``self_margin`` for self
+pairs (the wrist links sit a few cm from each other in ordinary poses). Keep ``table_margin``
+below ~0.02 m with the table at the base's height: the shoulder end of ``upper_arm_link`` stays about 0.03 m
+above such a table in every configuration (shoulder axis 0.089 m up, link radius ~0.06 m).
+
+A :class:`CollisionWorld` holds mutable Pinocchio/coal data: use one per thread.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Literal, Protocol
+
+import coal
+import numpy as np
+import pinocchio as pin
+from numpy.typing import ArrayLike, NDArray
+
+from softsig_service.arm.ur5 import UR5
+from softsig_service.errors import InvalidInput
+from softsig_service.geometry.transforms import check_transform
+
+FloatArray = NDArray[np.float64]
+
+REASON_TABLE = "collision:table"
+REASON_OBJECT = "collision:object"
+REASON_SELF = "collision:self"
+
+Category = Literal["table", "object", "self"]
+_REASON: dict[str, str] = {"table": REASON_TABLE, "object": REASON_OBJECT, "self": REASON_SELF}
+_CATEGORY_ORDER: tuple[Category, ...] = ("table", "object", "self")
+
+TABLE_NAME = "table"
+OBJECT_NAME = "object"
+HAND_PREFIX = "hand:"
+
+TABLE_EXCLUDED_LINKS = frozenset({"base_link", "shoulder_link"})
+"""Arm links not checked against the table: the base stands on it."""
+HAND_ATTACHED_LINKS = frozenset({"wrist_3_link", "ee_link"})
+"""Arm links not checked against hand shapes: the hand is bolted to their flange."""
+
+HandKind = Literal["box", "capsule", "sphere", "cylinder"]
+ObjectKind = Literal["box", "cylinder", "sphere", "ellipsoid", "mesh"]
+
+_HAND_SIZE_LEN: dict[str, int] = {"box": 3, "capsule": 2, "sphere": 1, "cylinder": 2}
+_OBJECT_SIZE_LEN: dict[str, int] = {"box": 3, "cylinder": 2, "sphere": 1, "ellipsoid": 3, "mesh": 0}
+
+
+# ----------------------------------------------------------------------------------------------------------
+# shapes
+# ----------------------------------------------------------------------------------------------------------
+
+
+def _check_size(kind: str, size: Sequence[float], expected: dict[str, int], field: str) -> tuple[float, ...]:
+    if kind not in expected:
+        raise InvalidInput(f"unknown shape kind {kind!r}", field=f"{field}.kind", value=kind, choices=expected)
+    n = expected[kind]
+    try:
+        vals = tuple(float(v) for v in size)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInput("size must be numbers", field=f"{field}.size", value=size) from exc
+    if len(vals) != n:
+        raise InvalidInput(f"a {kind} needs {n} size values", field=f"{field}.size", value=list(vals))
+    if not all(math.isfinite(v) and v > 0.0 for v in vals):
+        raise InvalidInput("sizes must be finite and > 0 [m]", field=f"{field}.size", value=list(vals))
+    return vals
+
+
+@dataclass(frozen=True, eq=False)
+class HandShape:
+    """A primitive rigidly attached to the hand (= ``tool0``) frame, with MuJoCo's size conventions.
+
+    Attributes:
+        kind: ``"box"``, ``"capsule"``, ``"sphere"`` or ``"cylinder"``.
+        size: [m] box: half-sizes (hx, hy, hz); capsule and cylinder: (radius, half-length), axis along the
+            shape's local z (a capsule's half-length excludes its end caps, as in MuJoCo); sphere: (radius,).
+        pose_in_hand: 4x4 pose of the shape's centre frame in the hand frame (default identity).
+        name: optional label used in collision reports (``"hand:<name>"``; default ``"<kind><index>"``).
+    """
+
+    kind: HandKind
+    size: tuple[float, ...]
+    pose_in_hand: FloatArray = field(default_factory=lambda: np.eye(4))
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "size", _check_size(self.kind, self.size, _HAND_SIZE_LEN, "hand_shape"))
+        T = check_transform(self.pose_in_hand, field="hand_shape.pose_in_hand").copy()
+        T.setflags(write=False)
+        object.__setattr__(self, "pose_in_hand", T)
+
+    def geometry(self) -> coal.CollisionGeometry:
+        """The coal geometry of this shape (in its own centre frame)."""
+        return _coal_primitive(self.kind, self.size)
+
+
+class ShapeSpec(Protocol):
+    """What :meth:`CollisionWorld.set_object` needs of an object shape (MuJoCo size conventions).
+
+    ``kind`` is one of box, cylinder, sphere, ellipsoid, mesh; ``size`` [m] is box half-sizes, cylinder
+    (radius, half-length) with its axis along the shape's z, sphere (radius,), ellipsoid (rx, ry, rz) radii,
+    and empty for a mesh; ``vertices`` ``(N, 3)`` [m] in the shape frame for a mesh (its convex hull is used).
+    """
+
+    @property
+    def kind(self) -> str: ...
+
+    @property
+    def size(self) -> tuple[float, ...]: ...
+
+    @property
+    def vertices(self) -> FloatArray | None: ...
+
+
+@dataclass(frozen=True, eq=False)
+class ObjectShape:
+    """A concrete :class:`ShapeSpec`: an object shape in its own frame (MuJoCo size conventions, [m])."""
+
+    kind: ObjectKind
+    size: tuple[float, ...] = ()
+    vertices: FloatArray | None = None
+
+
+def _coal_primitive(kind: str, size: Sequence[float]) -> coal.CollisionGeometry:
+    """coal geometry from MuJoCo-style sizes (coal takes full box sides and full cylinder/capsule lengths)."""
+    if kind == "box":
+        return coal.Box(2.0 * size[0], 2.0 * size[1], 2.0 * size[2])
+    if kind == "capsule":
+        return coal.Capsule(size[0], 2.0 * size[1])
+    if kind == "cylinder":
+        return coal.Cylinder(size[0], 2.0 * size[1])
+    if kind == "sphere":
+        return coal.Sphere(size[0])
+    if kind == "ellipsoid":
+        return coal.Ellipsoid(size[0], size[1], size[2])
+    raise InvalidInput(f"unknown shape kind {kind!r}", field="kind", value=kind)  # pragma: no cover
+
+
+def convex_hull(points: ArrayLike, field: str = "vertices") -> coal.ConvexBase:
+    """coal convex hull (qhull) of ``(N, 3)`` points [m]; :class:`InvalidInput` if they span no volume."""
+    P = np.asarray(points, dtype=np.float64)
+    if P.ndim != 2 or P.shape[1] != 3 or P.shape[0] < 4:
+        raise InvalidInput("need an (N, 3) array with N >= 4", field=field, value=f"shape {P.shape}")
+    if not np.all(np.isfinite(P)):
+        raise InvalidInput("contains NaN or infinite values", field=field)
+    centred = P - P.mean(axis=0)
+    sv = np.linalg.svd(centred, compute_uv=False)
+    if sv[-1] <= 1e-9 * max(sv[0], 1e-12):
+        raise InvalidInput("points are coplanar: their hull has no volume", field=field)
+    v = coal.StdVec_Vec3s()
+    v.extend(list(P))
+    return coal.Convex.convexHull(v, False, "")
+
+
+def object_geometry(shape: ShapeSpec, field: str = "object") -> coal.CollisionGeometry:
+    """coal geometry of an object shape (see :class:`ShapeSpec`)."""
+    kind = shape.kind
+    if kind not in _OBJECT_SIZE_LEN:
+        raise InvalidInput(f"unknown object kind {kind!r}", field=f"{field}.kind", value=kind, choices=_OBJECT_SIZE_LEN)
+    if kind == "mesh":
+        if shape.vertices is None:
+            raise InvalidInput("a mesh needs vertices", field=f"{field}.vertices")
+        return convex_hull(shape.vertices, field=f"{field}.vertices")
+    return _coal_primitive(kind, _check_size(kind, shape.size, _OBJECT_SIZE_LEN, field))
+
+
+# ----------------------------------------------------------------------------------------------------------
+# report
+# ----------------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CollisionReport:
+    """Result of a collision check.
+
+    Attributes:
+        in_collision: whether any checked pair is closer than the margin.
+        pairs: colliding pairs as (name, name): arm links by link name (``"wrist_2_link"``), hand shapes as
+            ``"hand:<name>"``, ``"table"``, ``"object"``.
+        reasons: distinct reasons, in the order ``collision:table``, ``collision:object``, ``collision:self``.
+        min_distance_table: smallest distance [m] of the checked links/hand shapes to the table (negative:
+            penetration depth), or None when not computed.
+        min_distance_object: same against the object (None without an object or when not computed).
+        min_distance_hand_table: smallest distance [m] of the hand shapes alone to the table (None: no hand
+            shape or not computed); the arm's upper arm stays ~0.03 m above the table, so
+            ``min_distance_table`` rarely says much about the hand.
+        min_distance_hand_object: smallest distance [m] of the hand shapes to the object (None when not
+            computed, e.g. with ``ignore_hand_object``).
+        waypoint: for a path check, the index of the first colliding configuration (None if free).
+        checked: number of configurations checked.
+    """
+
+    in_collision: bool
+    pairs: list[tuple[str, str]]
+    reasons: list[str]
+    min_distance_table: float | None = None
+    min_distance_object: float | None = None
+    min_distance_hand_table: float | None = None
+    min_distance_hand_object: float | None = None
+    waypoint: int | None = None
+    checked: int = 1
+
+    @property
+    def reason(self) -> str | None:
+        """The first reason (table before object before self), or None when free."""
+        return self.reasons[0] if self.reasons else None
+
+
+# ----------------------------------------------------------------------------------------------------------
+# the world
+# ----------------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _ArmGeometry:
+    model: pin.GeometryModel  # arm links with convex hulls, no pairs
+    names: tuple[str, ...]  # link name of each geometry object
+    self_pairs: tuple[tuple[int, int], ...]  # SRDF-filtered
+
+
+def _link_name(geom_name: str) -> str:
+    """``"wrist_2_link_0"`` -> ``"wrist_2_link"`` (Pinocchio suffixes geometry names with an index)."""
+    head, sep, tail = geom_name.rpartition("_")
+    return head if sep and tail.isdigit() else geom_name
+
+
+@lru_cache(maxsize=4)
+def _arm_geometry(urdf: Path, srdf: Path, package_dir: Path) -> _ArmGeometry:
+    """Arm collision geometry (convex hulls of the link meshes) and its SRDF-filtered pairs, built once."""
+    model = pin.buildModelFromUrdf(str(urdf))
+    gm = pin.buildGeomFromUrdf(model, str(urdf), pin.GeometryType.COLLISION, package_dirs=[str(package_dir)])
+    for go in gm.geometryObjects:
+        geo = go.geometry
+        if isinstance(geo, coal.BVHModelBase):
+            go.geometry = convex_hull(np.array(geo.vertices()), field=go.name)
+    gm.addAllCollisionPairs()
+    pin.removeCollisionPairs(model, gm, str(srdf))
+    pairs = tuple((int(cp.first), int(cp.second)) for cp in gm.collisionPairs)
+    names = tuple(_link_name(go.name) for go in gm.geometryObjects)
+    return _ArmGeometry(gm, names, pairs)
+
+
+@dataclass(frozen=True)
+class _Pair:
+    index: int
+    category: Category
+    hand_object: bool
+    names: tuple[str, str]
+    hand: bool  # the first geometry is a hand shape
+
+
+class CollisionWorld:
+    """Arm + hand + table + object collision checks at joint configurations of the UR5.
+
+    Args:
+        ur5: the arm model (:func:`softsig_service.arm.ur5.load_ur5`).
+        hand_shapes: primitives attached to the hand (= ``tool0``) frame; may be empty (bare flange).
+        table_height: z [m] of the table top in the world frame.
+        margin: default security margin [m] for object pairs: closer than this counts as colliding.
+        table_margin: default security margin [m] for the table pairs (see the module notes).
+        self_margin: default security margin [m] for the self pairs (arm/arm and hand/arm).
+    """
+
+    def __init__(
+        self,
+        ur5: UR5,
+        hand_shapes: Sequence[HandShape] = (),
+        table_height: float = 0.0,
+        *,
+        margin: float = 0.0,
+        table_margin: float = 0.0,
+        self_margin: float = 0.0,
+    ) -> None:
+        self.ur5 = ur5
+        self.hand_shapes = tuple(hand_shapes)
+        for i, hs in enumerate(self.hand_shapes):
+            if not isinstance(hs, HandShape):
+                raise InvalidInput("expected a HandShape", field=f"hand_shapes[{i}]", value=repr(hs))
+        self.table_height = _finite(table_height, "table_height")
+        self.margin = _check_margin(margin)
+        self.table_margin = _check_margin(table_margin, "table_margin")
+        self.self_margin = _check_margin(self_margin, "self_margin")
+        self._arm = _arm_geometry(ur5.urdf_path, ur5.srdf_path, ur5.package_dir)
+        self._model = ur5.model
+        self._data = ur5.model.createData()
+        self._object: tuple[coal.CollisionGeometry, FloatArray] | None = None
+        self._build()
+
+    # -- construction ------------------------------------------------------------------------------------
+
+    def _build(self) -> None:
+        """(Re)build the geometry model with the arm, the table, the hand shapes, the object and all pairs."""
+        arm = self._arm
+        gm = pin.GeometryModel()
+        names: list[str] = []
+        for go, name in zip(arm.model.geometryObjects, arm.names, strict=True):
+            gm.addGeometryObject(pin.GeometryObject(go))
+            names.append(name)
+        n_arm = len(names)
+        table = coal.Halfspace(np.array([0.0, 0.0, 1.0]), self.table_height)
+        table_id = gm.addGeometryObject(pin.GeometryObject(TABLE_NAME, 0, 0, pin.SE3.Identity(), table))
+        names.append(TABLE_NAME)
+
+        fid = self.ur5.flange_frame_id
+        frame = self._model.frames[fid]
+        joint_T_tool0 = np.array(frame.placement.homogeneous)
+        hand_ids: list[int] = []
+        for i, hs in enumerate(self.hand_shapes):
+            T = joint_T_tool0 @ hs.pose_in_hand
+            placement = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
+            label = HAND_PREFIX + (hs.name or f"{hs.kind}{i}")
+            go = pin.GeometryObject(label, int(frame.parentJoint), fid, placement, hs.geometry())
+            hand_ids.append(gm.addGeometryObject(go))
+            names.append(label)
+
+        object_id: int | None = None
+        if self._object is not None:
+            geo, pose = self._object
+            placement = pin.SE3(pose[:3, :3].copy(), pose[:3, 3].copy())
+            object_id = gm.addGeometryObject(pin.GeometryObject(OBJECT_NAME, 0, 0, placement, geo))
+            names.append(OBJECT_NAME)
+
+        specs: list[tuple[int, int, Category, bool]] = [(a, b, "self", False) for a, b in arm.self_pairs]
+        hand_set = set(hand_ids)
+        for a in range(n_arm):
+            if names[a] not in TABLE_EXCLUDED_LINKS:
+                specs.append((a, table_id, "table", False))
+            if object_id is not None:
+                specs.append((a, object_id, "object", False))
+        for h in hand_ids:
+            specs.append((h, table_id, "table", False))
+            if object_id is not None:
+                specs.append((h, object_id, "object", True))
+            for a in range(n_arm):
+                if names[a] not in HAND_ATTACHED_LINKS:
+                    specs.append((a, h, "self", False))
+
+        pairs: list[_Pair] = []
+        for a, b, cat, ho in specs:
+            gm.addCollisionPair(pin.CollisionPair(a, b))
+            k = len(pairs)
+            pairs.append(_Pair(k, cat, ho, (names[a], names[b]), a in hand_set))
+        self._gm = gm
+        gd = pin.GeometryData(gm)
+        for req in gd.collisionRequests:
+            # coal 3.0.3 without contact computation can report "free" when a capsule's core segment just
+            # touches a box face (seen: a capsule 1 cm deep in a box, ~1 in 4000 random capsule/box poses).
+            # Asking for one contact runs EPA on overlap and gets these right.
+            req.enable_contact = True
+            req.num_max_contacts = 1
+        self._gd = gd
+        self._pairs = pairs
+        self._names = names
+        self._applied_margins: dict[str, float] = {}
+
+    def set_object(self, shape: ShapeSpec, pose: ArrayLike) -> None:
+        """Put one object in the world (replacing any previous one).
+
+        Args:
+            shape: the object's shape in its own frame (:class:`ObjectShape`, or
+                ``softsig_service.planning.objects`` primitives), MuJoCo size conventions.
+            pose: 4x4 pose ``T_world_shape`` of the shape frame [m].
+        """
+        geo = object_geometry(shape)
+        T = check_transform(pose, field="object.pose").copy()
+        self._object = (geo, T)
+        self._build()
+
+    def clear_object(self) -> None:
+        """Remove the object from the world."""
+        self._object = None
+        self._build()
+
+    @property
+    def has_object(self) -> bool:
+        """Whether an object is in the world."""
+        return self._object is not None
+
+    @property
+    def pair_names(self) -> list[tuple[str, str, str]]:
+        """Every pair the world can check, as (name, name, category)."""
+        return [(p.names[0], p.names[1], p.category) for p in self._pairs]
+
+    # -- checks ----------------------------------------------------------------------------------------------
+
+    def _margins(self, margin: float | None, table_margin: float | None, self_margin: float | None) -> dict[str, float]:
+        return {
+            "object": self.margin if margin is None else _check_margin(margin),
+            "table": self.table_margin if table_margin is None else _check_margin(table_margin, "table_margin"),
+            "self": self.self_margin if self_margin is None else _check_margin(self_margin, "self_margin"),
+        }
+
+    def _apply_margins(self, margins: dict[str, float]) -> None:
+        if margins == self._applied_margins:
+            return
+        reqs = self._gd.collisionRequests
+        for p in self._pairs:
+            reqs[p.index].security_margin = margins[p.category]
+        self._applied_margins = margins
+
+    def _selected(
+        self, check_table: bool, check_object: bool, check_self: bool, ignore_hand_object: bool
+    ) -> list[_Pair]:
+        wanted = {"table": check_table, "object": check_object, "self": check_self}
+        return [p for p in self._pairs if wanted[p.category] and not (ignore_hand_object and p.hand_object)]
+
+    def check(
+        self,
+        q: ArrayLike,
+        *,
+        margin: float | None = None,
+        table_margin: float | None = None,
+        self_margin: float | None = None,
+        ignore_hand_object: bool = False,
+        check_table: bool = True,
+        check_object: bool = True,
+        check_self: bool = True,
+        distances: bool = True,
+    ) -> CollisionReport:
+        """Check the configuration ``q`` (``(6,)`` [rad]).
+
+        Args:
+            q: UR5 joint positions [rad].
+            margin: security margin [m] of the object pairs (default: the world's ``margin``).
+            table_margin: security margin [m] of the table pairs (default: the world's ``table_margin``).
+            self_margin: security margin [m] of the self pairs (default: the world's ``self_margin``).
+            ignore_hand_object: leave out the hand-shape/object pairs (at a grasp the hand touches it).
+            check_table, check_object, check_self: which pair groups to check.
+            distances: also compute the smallest distances [m] to the table and to the object (cheap: a few
+                GJK calls on convex shapes).
+        """
+        qa = self.ur5.check_q(q)
+        pairs = self._selected(check_table, check_object, check_self, ignore_hand_object)
+        return self._check(qa, pairs, self._margins(margin, table_margin, self_margin), distances)
+
+    def _check(self, q: FloatArray, pairs: list[_Pair], margins: dict[str, float], distances: bool) -> CollisionReport:
+        gm, gd = self._gm, self._gd
+        self._apply_margins(margins)
+        pin.updateGeometryPlacements(self._model, self._data, gm, gd, q)
+        hits: list[tuple[str, str]] = []
+        cats: set[str] = set()
+        # smallest distances: [arm+hand vs table, arm+hand vs object, hand vs table, hand vs object]
+        dmin: list[float | None] = [None, None, None, None]
+        for p in pairs:
+            if pin.computeCollision(gm, gd, p.index):
+                hits.append(p.names)
+                cats.add(p.category)
+            if distances and p.category != "self":
+                d = float(pin.computeDistance(gm, gd, p.index).min_distance)
+                slot = 0 if p.category == "table" else 1
+                dmin[slot] = _min_opt(dmin[slot], d)
+                if p.hand:
+                    dmin[slot + 2] = _min_opt(dmin[slot + 2], d)
+        reasons = [_REASON[c] for c in _CATEGORY_ORDER if c in cats]
+        return _report(bool(hits), hits, reasons, dmin)
+
+    def check_waypoints(
+        self,
+        qs: Sequence[ArrayLike] | ArrayLike,
+        *,
+        margin: float | None = None,
+        table_margin: float | None = None,
+        self_margin: float | None = None,
+        ignore_hand_object: bool = False,
+        check_table: bool = True,
+        check_object: bool = True,
+        check_self: bool = True,
+        distances: bool = True,
+        stop_at_first: bool = True,
+    ) -> CollisionReport:
+        """Check a sequence of configurations (e.g. IK solutions along a straight approach).
+
+        The report merges the waypoints: ``pairs``/``reasons`` of every colliding waypoint checked (only the
+        first when ``stop_at_first``), ``waypoint`` = the first colliding index, the minimum distances over
+        all checked waypoints, ``checked`` = how many were checked. Same options as :meth:`check`.
+        """
+        Q = np.asarray(qs, dtype=np.float64)
+        if Q.ndim != 2 or Q.shape[1] != self.ur5.nq or Q.shape[0] < 1:
+            raise InvalidInput(f"expected an (N, {self.ur5.nq}) array of configurations", field="qs")
+        if not np.all(np.isfinite(Q)):
+            raise InvalidInput("contains NaN or infinite values", field="qs")
+        pairs = self._selected(check_table, check_object, check_self, ignore_hand_object)
+        m = self._margins(margin, table_margin, self_margin)
+        hits: list[tuple[str, str]] = []
+        reasons: list[str] = []
+        first: int | None = None
+        dmin: list[float | None] = [None, None, None, None]
+        checked = 0
+        for i, q in enumerate(Q):
+            r = self._check(q, pairs, m, distances)
+            checked += 1
+            for j, d in enumerate(
+                (
+                    r.min_distance_table,
+                    r.min_distance_object,
+                    r.min_distance_hand_table,
+                    r.min_distance_hand_object,
+                )
+            ):
+                dmin[j] = _min_opt(dmin[j], d)
+            if r.in_collision:
+                first = i if first is None else first
+                hits.extend(h for h in r.pairs if h not in hits)
+                reasons.extend(x for x in r.reasons if x not in reasons)
+                if stop_at_first:
+                    break
+        reasons.sort(key=lambda x: [_REASON[c] for c in _CATEGORY_ORDER].index(x))
+        return _report(first is not None, hits, reasons, dmin, waypoint=first, checked=checked)
+
+    def check_path(
+        self,
+        q_from: ArrayLike,
+        q_to: ArrayLike,
+        steps: int = 10,
+        *,
+        margin: float | None = None,
+        table_margin: float | None = None,
+        self_margin: float | None = None,
+        ignore_hand_object: bool = False,
+        check_table: bool = True,
+        check_object: bool = True,
+        check_self: bool = True,
+        distances: bool = True,
+        stop_at_first: bool = True,
+    ) -> CollisionReport:
+        """Check ``steps + 1`` configurations interpolated linearly in joint space from ``q_from`` to ``q_to``
+        (both ends included). The options are those of :meth:`check_waypoints`."""
+        a = self.ur5.check_q(q_from, "q_from")
+        b = self.ur5.check_q(q_to, "q_to")
+        if steps < 1:
+            raise InvalidInput("steps must be >= 1", field="steps", value=steps)
+        s = np.linspace(0.0, 1.0, steps + 1)[:, None]
+        return self.check_waypoints(
+            a + s * (b - a),
+            margin=margin,
+            table_margin=table_margin,
+            self_margin=self_margin,
+            ignore_hand_object=ignore_hand_object,
+            check_table=check_table,
+            check_object=check_object,
+            check_self=check_self,
+            distances=distances,
+            stop_at_first=stop_at_first,
+        )
+
+
+def _report(
+    in_collision: bool,
+    hits: list[tuple[str, str]],
+    reasons: list[str],
+    dmin: Sequence[float | None],
+    waypoint: int | None = None,
+    checked: int = 1,
+) -> CollisionReport:
+    return CollisionReport(
+        in_collision,
+        hits,
+        reasons,
+        min_distance_table=dmin[0],
+        min_distance_object=dmin[1],
+        min_distance_hand_table=dmin[2],
+        min_distance_hand_object=dmin[3],
+        waypoint=waypoint,
+        checked=checked,
+    )
+
+
+def _min_opt(a: float | None, b: float | None) -> float | None:
+    if a is None:
+        return b
+    if b is None:
+        return a
+    return min(a, b)
+
+
+def _finite(v: float, field: str) -> float:
+    try:
+        f = float(v)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInput("expected a number", field=field, value=v) from exc
+    if not math.isfinite(f):
+        raise InvalidInput("NaN or infinite value", field=field, value=v)
+    return f
+
+
+def _check_margin(m: float, field: str = "margin") -> float:
+    f = _finite(m, field)
+    if f < 0.0:
+        raise InvalidInput("a margin must be >= 0 [m]", field=field, value=m)
+    return f
+
+
+__all__ = [
+    "HAND_ATTACHED_LINKS",
+    "REASON_OBJECT",
+    "REASON_SELF",
+    "REASON_TABLE",
+    "TABLE_EXCLUDED_LINKS",
+    "CollisionReport",
+    "CollisionWorld",
+    "HandKind",
+    "HandShape",
+    "ObjectKind",
+    "ObjectShape",
+    "ShapeSpec",
+    "convex_hull",
+    "object_geometry",
+]

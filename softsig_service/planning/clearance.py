@@ -1,0 +1,95 @@
+"""How far the open hand can travel along its approach before it touches the table or the object (coal).
+
+The hand's collision primitives (in the hand frame) are posed by a flange pose ``T_world_hand`` and measured
+against the table (the half-space below z = table_height, as a large thin box) and the object. A straight
+approach is advanced conservatively: moving every point of the hand by ``s`` along a unit direction changes
+any distance by at most ``s``, so a step of (distance - margin) never passes through anything.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import coal
+import numpy as np
+from numpy.typing import NDArray
+
+from softsig_service.arm.collision import HandShape, object_geometry
+from softsig_service.planning.objects import TableObject
+
+TABLE_HALF_THICKNESS = 0.05
+"""[m] the table is a 6 x 6 x 0.1 m box whose top face is the table plane."""
+
+
+def _tf(T: NDArray[np.float64]) -> coal.Transform3s:
+    return coal.Transform3s(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
+
+
+@dataclass(frozen=True)
+class Descent:
+    """Result of :meth:`HandClearance.descend`: the pose where the approach stops and what stops it."""
+
+    T_world_hand: NDArray[np.float64]
+    travel: float
+    """[m] travelled from the start pose."""
+    limited_by: str
+    """``"table"``, ``"object"`` or ``"travel"`` (the full travel was free)."""
+    distance: float
+    """[m] clearance to the nearest of table and object at the stop."""
+
+
+class HandClearance:
+    """Distances [m] from the open hand's primitives to the table and one object."""
+
+    def __init__(self, hand_shapes: Sequence[HandShape], obj: TableObject | None, table_height: float) -> None:
+        self._shapes = [(s.geometry(), np.asarray(s.pose_in_hand)) for s in hand_shapes]
+        self._table = coal.Box(6.0, 6.0, 2 * TABLE_HALF_THICKNESS)
+        T_table = np.eye(4)
+        T_table[2, 3] = table_height - TABLE_HALF_THICKNESS
+        self._table_tf = _tf(T_table)
+        self._object = None
+        if obj is not None:
+            self._object = (object_geometry(obj.primitive()), _tf(obj.primitive_pose))
+        self._req = coal.DistanceRequest()
+
+    def distances(self, T_world_hand: NDArray[np.float64]) -> tuple[float, float]:
+        """(to the table, to the object) [m]; negative inside; +inf for a missing object."""
+        d_table = d_obj = float("inf")
+        for geom, T_shape in self._shapes:
+            tf = _tf(T_world_hand @ T_shape)
+            res = coal.DistanceResult()
+            d_table = min(d_table, coal.distance(geom, tf, self._table, self._table_tf, self._req, res))
+            if self._object is not None:
+                res = coal.DistanceResult()
+                d_obj = min(d_obj, coal.distance(geom, tf, self._object[0], self._object[1], self._req, res))
+        return d_table, d_obj
+
+    def descend(
+        self,
+        T_start: NDArray[np.float64],
+        direction: NDArray[np.float64],
+        max_travel: float,
+        margin: float,
+        *,
+        tolerance: float = 1e-4,
+        max_steps: int = 200,
+    ) -> Descent:
+        """Advance ``T_start`` along the unit ``direction`` (world) until ``margin`` [m] from table or object."""
+        d = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+        travel = 0.0
+        T = np.array(T_start, dtype=float)
+        for _ in range(max_steps):
+            d_table, d_obj = self.distances(T)
+            gap = min(d_table, d_obj) - margin
+            if gap <= tolerance or travel >= max_travel:
+                break
+            step = min(gap, max_travel - travel)
+            travel += step
+            T[:3, 3] = T_start[:3, 3] + travel * d
+        d_table, d_obj = self.distances(T)
+        if travel >= max_travel and min(d_table, d_obj) - margin > tolerance:
+            limited = "travel"
+        else:
+            limited = "table" if d_table <= d_obj else "object"
+        return Descent(T_world_hand=T, travel=travel, limited_by=limited, distance=min(d_table, d_obj))

@@ -1,0 +1,351 @@
+"""Top-grasp planning: strategy -> wrist pose -> descent along the approach -> UR5 IK -> collision checks.
+
+Frames: world = UR5 ``base_link`` (z up); poses are of the flange ``tool0`` (= the hand frame). A top grasp
+points hand +z (the approach) down. The planner:
+
+1. proposes the flange orientation and horizontal position of both yaw branches: strategy **S** aligns hand +x
+   with the object's major axis and centres the open hand's bounding box over the object; strategy **C** solves
+   the wrist-pose NLP that aligns the closure signature's horizontal projection with the object's closing
+   axis (default the minor axis) and puts the CS anchor over the object's centre;
+2. descends from high above along the approach until the open hand comes within ``margin`` of the table or the
+   object (the grasp pose), and raises the pre-grasp ``approach_distance`` back along the approach;
+3. solves the UR5 IK for the grasp (seeded by the current configuration), the pre-grasp (seeded by the grasp)
+   and waypoints of the straight approach between them; checks arm + hand against table, object and itself
+   at every one of them (coal);
+4. returns, of the feasible branches, the one whose grasp configuration is closest to the current one.
+   An infeasible request gives ``success=False`` with machine-readable ``reasons``.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from softsig_service.arm.collision import CollisionWorld, HandShape
+from softsig_service.arm.ur5 import UR5, load_ur5
+from softsig_service.config import Settings
+from softsig_service.errors import InvalidInput
+from softsig_service.geometry.transforms import Pose, matrix_to_quat
+from softsig_service.hands.closure import simulate_closure
+from softsig_service.hands.collision_shapes import hand_collision_shapes
+from softsig_service.hands.model import load_hand
+from softsig_service.planning.clearance import HandClearance
+from softsig_service.planning.objects import TableObject
+from softsig_service.planning.strategies import STRATEGIES, axis_angle_between_lines, strategy_s_poses
+from softsig_service.planning.wrist_pose import solve_wrist_pose
+from softsig_service.signatures.closure import ClosureSignature, compute_closure_signature
+
+HOME_Q = (0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0)
+"""Default current configuration [rad]: flange pointing down at (0.49, 0.11, 0.43) m."""
+START_HEIGHT = 0.5
+"""[m] the descent starts this far above the object's centre along the approach."""
+APPROACH_WAYPOINTS = 5
+
+
+@dataclass(frozen=True)
+class HandPlanningModel:
+    """What the planner needs of a hand, computed once: its CS, open reference points and collision shapes."""
+
+    name: str
+    signature: ClosureSignature
+    points_open: NDArray[np.float64]
+    """(N, 3) [m] open-hand reference points, hand frame."""
+    shapes: tuple[HandShape, ...]
+    bbox_center: NDArray[np.float64]
+    """[m] centre of the open reference points' bounding box, hand frame (what strategy S centres)."""
+    closure: dict[str, Any]
+
+
+@functools.lru_cache(maxsize=32)
+def planning_model(hand_ref: str, method: str = "ellipsoid", settings: Settings | None = None) -> HandPlanningModel:
+    """Simulate the hand's closure once and derive its planning data (cached per hand and CS method)."""
+    hand = load_hand(hand_ref, settings)
+    traj = simulate_closure(hand, surface_points=800 if method == "mesh" else 0)
+    cs = compute_closure_signature(traj, method)  # type: ignore[arg-type]
+    P = traj.positions[0]
+    closure = {
+        "actuators": [hand.model.actuator(a).name for a in hand.closure_actuators],
+        "open": hand.closure_open.tolist(),
+        "closed": hand.closure_closed.tolist(),
+        "duration": hand.manifest.closure.duration,
+    }
+    return HandPlanningModel(
+        name=hand.name,
+        signature=cs,
+        points_open=P,
+        shapes=tuple(hand_collision_shapes(hand)),
+        bbox_center=(P.min(axis=0) + P.max(axis=0)) / 2,
+        closure=closure,
+    )
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    """A top-grasp request. ``current_q`` [rad] defaults to :data:`HOME_Q`; distances in [m]."""
+
+    hand: str
+    obj: TableObject
+    strategy: Literal["S", "C"]
+    current_q: tuple[float, ...] | None = None
+    closing_axis: Literal["minor", "major"] = "minor"
+    approach_distance: float = 0.10
+    margin: float = 0.005
+    cs_method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid"
+
+    def __post_init__(self) -> None:
+        if self.strategy not in STRATEGIES:
+            raise InvalidInput("unknown strategy", field="strategy", value=self.strategy, choices=STRATEGIES)
+        if self.closing_axis not in ("minor", "major"):
+            raise InvalidInput("unknown closing axis", field="closing_axis", value=self.closing_axis,
+                               choices=("minor", "major"))  # fmt: skip
+        for name, value, lo, hi in (("approach_distance", self.approach_distance, 0.0, 0.5),
+                                    ("margin", self.margin, 0.0, 0.05)):  # fmt: skip
+            if not (math.isfinite(value) and lo <= value <= hi):
+                raise InvalidInput(f"must be within [{lo}, {hi}] m", field=name, value=value)
+
+
+@dataclass(frozen=True)
+class GraspPlan:
+    """A planned top grasp; its JSON maps one to one onto moveit_msgs/Grasp (see docs/planning.md)."""
+
+    success: bool
+    reasons: list[str]
+    strategy: str
+    hand: str
+    object: dict[str, Any]
+    joint_names: list[str]
+    joint_positions: list[float] | None
+    pre_grasp_joint_positions: list[float] | None
+    grasp_pose: NDArray[np.float64] | None
+    pre_grasp_pose: NDArray[np.float64] | None
+    approach: dict[str, Any]
+    quality: dict[str, float | None]
+    timing: dict[str, float]
+    closure: dict[str, Any]
+    solver: dict[str, Any] = field(default_factory=dict)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """The plan JSON: poses as ``{"frame_id", "position": {x,y,z}, "orientation": {x,y,z,w}}``."""
+
+        def pose(T: NDArray[np.float64] | None) -> dict[str, Any] | None:
+            if T is None:
+                return None
+            return Pose(position=T[:3, 3], quaternion=matrix_to_quat(T[:3, :3]), frame_id="base_link").to_wire()
+
+        return {
+            "success": self.success,
+            "reasons": list(self.reasons),
+            "strategy": self.strategy,
+            "hand": self.hand,
+            "object": self.object,
+            "joint_names": list(self.joint_names),
+            "joint_positions": self.joint_positions,
+            "pre_grasp_joint_positions": self.pre_grasp_joint_positions,
+            "grasp_pose": pose(self.grasp_pose),
+            "pre_grasp_pose": pose(self.pre_grasp_pose),
+            "approach": self.approach,
+            "quality": self.quality,
+            "timing": self.timing,
+            "closure": self.closure,
+            "solver": self.solver,
+        }
+
+
+@dataclass(eq=False)
+class _Candidate:
+    T: NDArray[np.float64]
+    status: str
+    iterations: int
+    reasons: list[str] = field(default_factory=list)
+    q: NDArray[np.float64] | None = None
+    q_pre: NDArray[np.float64] | None = None
+    T_pre: NDArray[np.float64] | None = None
+    ik_residual: float | None = None
+    clearance: float | None = None
+    distance: float = math.inf
+
+
+class Planner:
+    """Plans top grasps for a UR5; models and collision worlds are built once and reused (thread-safe)."""
+
+    def __init__(self, settings: Settings | None = None, ur5: UR5 | None = None) -> None:
+        self.settings = settings
+        self.ur5 = ur5 or load_ur5()
+        self._worlds: dict[str, CollisionWorld] = {}
+        self._lock = threading.Lock()
+
+    def _world(self, model: HandPlanningModel, table_height: float) -> CollisionWorld:
+        key = f"{model.name}@{table_height:.6f}"
+        if key not in self._worlds:
+            self._worlds[key] = CollisionWorld(self.ur5, model.shapes, table_height=table_height)
+        return self._worlds[key]
+
+    def plan(self, req: PlanRequest) -> GraspPlan:
+        """Plan ``req``; never raises for an infeasible problem (``success=False`` with reasons)."""
+        t_start = time.perf_counter()
+        model = planning_model(req.hand, req.cs_method, self.settings)
+        obj = req.obj
+        q_now = np.asarray(req.current_q if req.current_q is not None else HOME_Q, dtype=float)
+        q_now = self.ur5.check_q(q_now, field="current_q")
+        closing = obj.o2 if req.closing_axis == "minor" else obj.o1
+        center = obj.center
+
+        t0 = time.perf_counter()
+        candidates: list[_Candidate] = []
+        if req.strategy == "C":
+            sols = solve_wrist_pose(
+                model.signature.axis, model.signature.anchor, model.points_open, center, closing,
+                table_height=obj.table_height, margin=req.margin,
+            )  # fmt: skip
+            for s in sols:
+                c = _Candidate(T=s.T_world_hand, status=s.status, iterations=s.iterations)
+                if not s.success:
+                    c.reasons.append("alignment_impossible" if s.status == "alignment_impossible" else "unreachable")
+                candidates.append(c)
+        else:
+            for T in strategy_s_poses(center, obj.o1, model.bbox_center):
+                candidates.append(_Candidate(T=T, status="closed_form", iterations=0))
+        t_strategy = time.perf_counter() - t0
+
+        t_ik = t_col = 0.0
+        with self._lock:
+            world = self._world(model, obj.table_height)
+            world.set_object(obj.primitive(), obj.primitive_pose)
+            clearance = HandClearance(model.shapes, obj, obj.table_height)
+            for c in candidates:
+                if c.reasons:
+                    continue
+                t1 = time.perf_counter()
+                self._place(c, clearance, req, center)
+                t_col += time.perf_counter() - t1
+                if not c.reasons:
+                    dt_ik, dt_col = self._evaluate(c, q_now, req, world)
+                    t_ik, t_col = t_ik + dt_ik, t_col + dt_col
+
+        feasible = [c for c in candidates if not c.reasons]
+        best = min(feasible, key=lambda c: c.distance) if feasible else _most_advanced(candidates)
+        R = best.T[:3, :3]
+        if req.strategy == "C":
+            align = axis_angle_between_lines(R @ model.signature.axis, closing)
+        else:
+            align = axis_angle_between_lines(R[:, 0], obj.o1)
+        approach_dir = R[:, 2]
+        ok = any(best is c for c in feasible)
+        return GraspPlan(
+            success=ok,
+            reasons=[] if ok else sorted(set(best.reasons), key=best.reasons.index),
+            strategy=req.strategy,
+            hand=model.name,
+            object=obj.to_json(),
+            joint_names=list(self.ur5.joint_names),
+            joint_positions=best.q.tolist() if ok and best.q is not None else None,
+            pre_grasp_joint_positions=best.q_pre.tolist() if ok and best.q_pre is not None else None,
+            grasp_pose=best.T,
+            pre_grasp_pose=best.T_pre,
+            approach={
+                "direction": approach_dir.tolist(),
+                "frame_id": "base_link",
+                "desired_distance": req.approach_distance,
+                "min_distance": 0.5 * req.approach_distance,
+            },
+            quality={"alignment_error": align, "ik_residual": best.ik_residual, "clearance": best.clearance},
+            timing={
+                "strategy": t_strategy,
+                "ik": t_ik,
+                "collision": t_col,
+                "total": time.perf_counter() - t_start,
+            },
+            closure=model.closure,
+            solver={"status": best.status, "iterations": best.iterations, "cs_method": req.cs_method},
+        )
+
+    def _evaluate(
+        self, c: _Candidate, q_now: NDArray[np.float64], req: PlanRequest, world: CollisionWorld
+    ) -> tuple[float, float]:
+        """IK and collision checks of a placed candidate; returns (IK time, collision time) [s]."""
+        t0 = time.perf_counter()
+        self._solve(c, q_now, req)
+        t1 = time.perf_counter()
+        if not c.reasons:
+            self._check(c, world)
+        return t1 - t0, time.perf_counter() - t1
+
+    def check_wrist_pose(self, req: PlanRequest, T_grasp: NDArray[np.float64]) -> list[str]:
+        """Reasons why the grasp flange pose ``T_grasp`` (4x4, world) fails for ``req`` (empty: feasible).
+
+        Runs the same IK, approach and collision checks as :meth:`plan` on a pose given by the caller.
+        """
+        model = planning_model(req.hand, req.cs_method, self.settings)
+        q_now = self.ur5.check_q(np.asarray(req.current_q or HOME_Q, dtype=float), field="current_q")
+        c = _Candidate(T=np.asarray(T_grasp, dtype=float), status="given", iterations=0)
+        c.T_pre = c.T.copy()
+        c.T_pre[:3, 3] -= c.T[:3, 2] * req.approach_distance
+        with self._lock:
+            world = self._world(model, req.obj.table_height)
+            world.set_object(req.obj.primitive(), req.obj.primitive_pose)
+            self._evaluate(c, q_now, req, world)
+        return c.reasons
+
+    def _place(self, c: _Candidate, clearance: HandClearance, req: PlanRequest, center: NDArray[np.float64]) -> None:
+        """Descend along the approach from high above to the grasp pose; set the pre-grasp."""
+        direction = c.T[:3, 2]
+        T_top = c.T.copy()
+        T_top[:3, 3] += direction * ((c.T[:3, 3] - center) @ direction - START_HEIGHT)
+        d0 = min(clearance.distances(T_top))
+        if d0 < req.margin:
+            c.reasons.append("collision:object")  # even the start above the object is blocked
+            return
+        descent = clearance.descend(T_top, direction, max_travel=START_HEIGHT + 0.5, margin=req.margin)
+        c.T = descent.T_world_hand
+        c.clearance = descent.distance
+        c.T_pre = c.T.copy()
+        c.T_pre[:3, 3] -= direction * req.approach_distance
+
+    def _solve(self, c: _Candidate, q_now: NDArray[np.float64], req: PlanRequest) -> None:
+        ik = self.ur5.solve_ik(c.T, q_now)
+        if not ik.success:
+            c.reasons.append("unreachable")
+            return
+        assert c.T_pre is not None
+        pre = self.ur5.solve_ik(c.T_pre, ik.q)
+        if not pre.success:
+            c.reasons.append("unreachable:pre_grasp")
+            return
+        c.q, c.q_pre = ik.q, pre.q
+        c.ik_residual = max(ik.position_residual, pre.position_residual)
+        c.distance = float(np.linalg.norm(ik.q - q_now))
+
+    def _check(self, c: _Candidate, world: CollisionWorld) -> None:
+        assert c.q is not None and c.q_pre is not None and c.T_pre is not None
+        path = [c.q_pre]
+        q = c.q_pre
+        for k in range(1, APPROACH_WAYPOINTS):
+            s = k / APPROACH_WAYPOINTS
+            T = c.T_pre.copy()
+            T[:3, 3] = (1 - s) * c.T_pre[:3, 3] + s * c.T[:3, 3]
+            ik = self.ur5.solve_ik(T, q, analytic=False, seeds=0)
+            if not ik.success:
+                c.reasons.append("unreachable:approach")
+                return
+            q = ik.q
+            path.append(q)
+        path.append(c.q)
+        if float(np.max(np.abs(np.diff(np.array(path), axis=0)))) > 0.5:
+            c.reasons.append("unreachable:approach")  # a branch flip: the arm would not move straight
+            return
+        report = world.check_waypoints(np.array(path), distances=False)
+        if report.in_collision:
+            c.reasons.extend(report.reasons)
+
+
+def _most_advanced(candidates: list[_Candidate]) -> _Candidate:
+    """The failed candidate that got furthest (for its reasons and poses)."""
+    order = {"alignment_impossible": 0, "unreachable": 1, "unreachable:pre_grasp": 2, "unreachable:approach": 3}
+    return max(candidates, key=lambda c: min((order.get(r, 4) for r in c.reasons), default=5))

@@ -1,0 +1,49 @@
+"""Top-grasp strategies as pure math: S (bounding-box alignment) and the alignment measures of both.
+
+World frame = UR5 ``base_link`` (z up); hand frame per DESIGN §3 (+z approach, +x across the palm). A top grasp
+has hand +z pointing down. Strategy C's optimisation lives in :mod:`softsig_service.planning.wrist_pose`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from softsig_service.planning.wrist_pose import hand_rotation
+
+STRATEGIES = ("S", "C")
+
+
+def axis_angle_between_lines(u: NDArray[np.float64], v: NDArray[np.float64]) -> float:
+    """Angle [rad] in [0, pi/2] between two lines (directions without sign) in the horizontal plane."""
+    a = np.asarray(u, dtype=float)[:2]
+    b = np.asarray(v, dtype=float)[:2]
+    na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+    if na < 1e-12 or nb < 1e-12:
+        return math.pi / 2
+    c = abs(float(a @ b)) / (na * nb)
+    return math.acos(min(1.0, c))
+
+
+def strategy_s_poses(
+    object_center: NDArray[np.float64], major_axis: NDArray[np.float64], hand_center: NDArray[np.float64]
+) -> list[NDArray[np.float64]]:
+    """Strategy S: hand +z down, hand +x along the object's major axis, hand centre over the object's centre.
+
+    ``hand_center`` [m] is a point of the hand frame (the centre of the open hand's bounding box) placed
+    vertically above ``object_center`` [m, world]; the flange height is left at the object's centre height
+    (the planner sets it by descending along the approach). Both yaws (the axis has no sign) are returned.
+    """
+    o1 = np.asarray(major_axis, dtype=float)
+    yaw0 = math.atan2(o1[1], o1[0])
+    poses = []
+    for yaw in (yaw0, yaw0 + math.pi):
+        R = hand_rotation(math.remainder(yaw, 2 * math.pi), 0.0, 0.0)
+        T = np.eye(4)
+        T[:3, :3] = R
+        T[:3, 3] = np.asarray(object_center, dtype=float) - R @ np.asarray(hand_center, dtype=float)
+        T[2, 3] = object_center[2]
+        poses.append(T)
+    return poses

@@ -1,0 +1,203 @@
+"""Strategy C's wrist-pose optimisation (CasADi NLP, solved with Ipopt), built once per number of points.
+
+Decision variables: the hand (flange, = UR5 ``tool0``) pose in the world (UR5 ``base_link``, z up) as
+position ``t = (x, y, z)`` [m], ``yaw`` about world z and small ``roll``/``pitch`` [rad]. The hand's
+orientation is ``R = Rz(yaw) · Rx(pi + roll) · Ry(pitch)``: with roll = pitch = 0, hand +z points down (a top
+grasp) and hand +x keeps its heading ``yaw``.
+
+Cost (all terms dimensionless or scaled by a stated length):
+
+* alignment: ``sin^2`` of the angle between the horizontal projection of the closure signature axis
+  ``R u`` and the object's closing axis ``a`` (an axis: both signs align);
+* centring: squared horizontal distance of the CS anchor ``t + R p_a`` from the object's centre, per
+  ``CENTRING_SCALE`` [m];
+* depth: squared height of the anchor above the object's centre, per ``DEPTH_SCALE`` [m];
+* tilt: ``roll^2 + pitch^2`` weighted by ``TILT_WEIGHT``.
+
+Constraints: every reference point of the open hand at least ``margin`` [m] above the table plane; roll and
+pitch within +-``MAX_TILT``; the flange within the UR5's reach shell around its shoulder. Object data enter as
+parameters, so the compiled solver is reused for every object and pose.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from softsig_service.errors import InvalidInput
+
+CENTRING_SCALE = 0.01
+DEPTH_SCALE = 0.05
+TILT_WEIGHT = 0.5
+MAX_TILT = 0.2
+"""Largest roll/pitch [rad] the optimisation may use."""
+SHOULDER = (0.0, 0.0, 0.089159)
+"""UR5 shoulder centre in base_link [m] (DH d1)."""
+REACH = (0.20, 0.85)
+"""Inner and outer radius [m] of the flange's reachable shell around the shoulder."""
+CENTRING_TOLERANCE = 0.002
+"""[m] a solution whose CS anchor misses the object's centre by more than this is not a grasp (out of reach)."""
+MIN_HORIZONTAL_CS = 0.2
+"""Below this horizontal norm of the CS axis (hand pointing down) the alignment is impossible."""
+
+
+@dataclass(frozen=True)
+class WristPoseSolution:
+    """One solution of the wrist-pose NLP; ``T_world_hand`` is the flange pose in the world [m, rad]."""
+
+    success: bool
+    status: str
+    T_world_hand: NDArray[np.float64]
+    yaw: float
+    roll: float
+    pitch: float
+    alignment_error: float
+    """Angle [rad] between the CS's horizontal projection and the closing axis (as lines)."""
+    centring_error: float
+    """Horizontal distance [m] of the CS anchor from the object's centre."""
+    clearance: float
+    """Lowest open-hand reference point's height above the table [m]."""
+    iterations: int
+    solve_time: float
+    """[s]"""
+
+
+def hand_rotation(yaw: Any, roll: Any, pitch: Any, lib: Any = np) -> Any:
+    """``Rz(yaw) Rx(pi + roll) Ry(pitch)`` with numpy or casadi (``lib``)."""
+    cz, sz = lib.cos(yaw), lib.sin(yaw)
+    cr, sr = -lib.cos(roll), -lib.sin(roll)  # cos/sin of pi + roll
+    cp, sp = lib.cos(pitch), lib.sin(pitch)
+    if lib is np:
+        Rz = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
+        Rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+        Ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+        return Rz @ Rx @ Ry
+    Rz = ca.vertcat(ca.horzcat(cz, -sz, 0), ca.horzcat(sz, cz, 0), ca.horzcat(0, 0, 1))
+    Rx = ca.vertcat(ca.horzcat(1, 0, 0), ca.horzcat(0, cr, -sr), ca.horzcat(0, sr, cr))
+    Ry = ca.vertcat(ca.horzcat(cp, 0, sp), ca.horzcat(0, 1, 0), ca.horzcat(-sp, 0, cp))
+    return Rz @ Rx @ Ry
+
+
+@functools.lru_cache(maxsize=16)
+def _solver(n_points: int) -> tuple[ca.Function, int]:
+    w = ca.SX.sym("w", 6)  # x, y, z, yaw, roll, pitch
+    p = ca.SX.sym("p", 3 + 3 + 3 * n_points + 3 + 2 + 2)
+    u, pa = p[0:3], p[3:6]
+    P = ca.reshape(p[6 : 6 + 3 * n_points], 3, n_points)
+    k = 6 + 3 * n_points
+    c, a, table, margin = p[k : k + 3], p[k + 3 : k + 5], p[k + 5], p[k + 6]
+    t = w[0:3]
+    R = hand_rotation(w[3], w[4], w[5], lib=ca)
+    v = R @ u
+    cross = v[0] * a[1] - v[1] * a[0]
+    align = cross**2 / (v[0] ** 2 + v[1] ** 2 + 1e-9)
+    anchor = t + R @ pa
+    centring = ((anchor[0] - c[0]) ** 2 + (anchor[1] - c[1]) ** 2) / CENTRING_SCALE**2
+    depth = (anchor[2] - c[2]) ** 2 / DEPTH_SCALE**2
+    tilt = TILT_WEIGHT * (w[4] ** 2 + w[5] ** 2)
+    heights = (t[2] + (R @ P)[2, :]).T - table - margin  # >= 0
+    s = t - ca.DM(SHOULDER)
+    reach = ca.dot(s, s)
+    g = ca.vertcat(heights, reach)
+    nlp = {"x": w, "p": p, "f": align + 1e-3 * (centring + depth) + tilt, "g": g}
+    opts: dict[str, Any] = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.tol": 1e-10,
+            "ipopt.max_iter": 200, "ipopt.mu_strategy": "adaptive"}  # fmt: skip
+    return ca.nlpsol("wrist_pose", "ipopt", nlp, opts), n_points
+
+
+def _initial_guess(u: NDArray[np.float64], pa: NDArray[np.float64], P: NDArray[np.float64],
+                   c: NDArray[np.float64], a: NDArray[np.float64], table: float, margin: float,
+                   yaw_offset: float) -> NDArray[np.float64]:  # fmt: skip
+    v0 = hand_rotation(0.0, 0.0, 0.0) @ u
+    yaw = math.atan2(a[1], a[0]) - math.atan2(v0[1], v0[0]) + yaw_offset
+    R = hand_rotation(yaw, 0.0, 0.0)
+    t = c - R @ pa
+    t[2] = max(c[2] - (R @ pa)[2], table + margin - float((P @ R.T)[:, 2].min()))
+    return np.array([t[0], t[1], t[2] + 1e-4, yaw, 0.0, 0.0])
+
+
+def solve_wrist_pose(
+    cs_axis: NDArray[np.float64],
+    cs_anchor: NDArray[np.float64],
+    points_open: NDArray[np.float64],
+    object_center: NDArray[np.float64],
+    closing_axis: NDArray[np.float64],
+    *,
+    table_height: float = 0.0,
+    margin: float = 0.005,
+) -> list[WristPoseSolution]:
+    """Solve strategy C for both yaw branches of the CS axis; return the two solutions (best first).
+
+    ``cs_axis`` (unit) and ``cs_anchor`` [m] and ``points_open`` (N, 3) [m] are in the hand frame;
+    ``object_center`` [m] and the horizontal ``closing_axis`` (2 or 3 components, unit after projection) are in
+    the world frame.
+    """
+    u = np.asarray(cs_axis, dtype=float).reshape(3)
+    pa = np.asarray(cs_anchor, dtype=float).reshape(3)
+    P = np.asarray(points_open, dtype=float).reshape(-1, 3)
+    c = np.asarray(object_center, dtype=float).reshape(3)
+    a = np.asarray(closing_axis, dtype=float).ravel()[:2]
+    for name, arr in (("cs_axis", u), ("cs_anchor", pa), ("points_open", P), ("object_center", c),
+                      ("closing_axis", a)):  # fmt: skip
+        if not np.all(np.isfinite(arr)):
+            raise InvalidInput("values must be finite", field=name)
+    if np.linalg.norm(a) < 1e-9:
+        raise InvalidInput("closing axis has no horizontal component", field="closing_axis")
+    a = a / np.linalg.norm(a)
+    u = u / np.linalg.norm(u)
+    horizontal = float(np.linalg.norm(u[:2]))
+    solver, n = _solver(len(P))
+    params = np.concatenate([u, pa, P.reshape(-1), c, a, [table_height, margin]])
+    lbx = [-ca.inf, -ca.inf, -ca.inf, -ca.inf, -MAX_TILT, -MAX_TILT]
+    ubx = [ca.inf, ca.inf, ca.inf, ca.inf, MAX_TILT, MAX_TILT]
+    lbg = [0.0] * n + [REACH[0] ** 2]
+    ubg = [ca.inf] * n + [REACH[1] ** 2]
+    out = []
+    for offset in (0.0, math.pi):
+        x0 = _initial_guess(u, pa, P, c, a, table_height, margin, offset)
+        t0 = time.perf_counter()
+        sol = solver(x0=x0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        elapsed = time.perf_counter() - t0
+        stats = solver.stats()
+        w = np.asarray(sol["x"]).ravel()
+        R = hand_rotation(w[3], w[4], w[5])
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = R, w[:3]
+        v = R @ u
+        err = math.asin(min(1.0, abs(v[0] * a[1] - v[1] * a[0]) / max(np.linalg.norm(v[:2]), 1e-12)))
+        anchor = w[:3] + R @ pa
+        g = np.asarray(sol["g"]).ravel()
+        feasible = bool(np.all(g[:n] >= -1e-6) and REACH[0] ** 2 - 1e-6 <= g[n] <= REACH[1] ** 2 + 1e-6)
+        status = str(stats.get("return_status", ""))
+        centring = float(np.linalg.norm(anchor[:2] - c[:2]))
+        feasible = feasible and centring <= CENTRING_TOLERANCE
+        ok = bool(stats.get("success", False)) and feasible and horizontal >= MIN_HORIZONTAL_CS
+        if horizontal < MIN_HORIZONTAL_CS:
+            status = "alignment_impossible"
+        elif centring > CENTRING_TOLERANCE:
+            status = "unreachable"
+        elif not feasible:
+            status = "unreachable" if not (REACH[0] ** 2 <= g[n] <= REACH[1] ** 2) else "infeasible"
+        out.append(
+            WristPoseSolution(
+                success=ok,
+                status=status,
+                T_world_hand=T,
+                yaw=float(math.remainder(w[3], 2 * math.pi)),
+                roll=float(w[4]),
+                pitch=float(w[5]),
+                alignment_error=float(err),
+                centring_error=centring,
+                clearance=float(g[:n].min() + margin),
+                iterations=int(stats.get("iter_count", 0)),
+                solve_time=elapsed,
+            )
+        )
+    return out

@@ -1,0 +1,135 @@
+"""Top-grasp planning with strategies S and C: alignment, kinematics, reachability, collisions, branch choice."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from softsig_service.errors import InvalidInput
+from softsig_service.geometry.transforms import Pose, quat_to_matrix
+from softsig_service.planning.objects import builtin_object
+from softsig_service.planning.planner import GraspPlan, Planner, PlanRequest, planning_model
+from softsig_service.planning.strategies import axis_angle_between_lines
+
+ONE_DEGREE = math.radians(1.0)
+
+
+@pytest.fixture(scope="module")
+def planner() -> Planner:
+    return Planner()
+
+
+def _check_kinematics(planner: Planner, plan: GraspPlan) -> None:
+    assert plan.joint_positions is not None and plan.pre_grasp_joint_positions is not None
+    assert plan.grasp_pose is not None and plan.pre_grasp_pose is not None
+    for q, T in ((plan.joint_positions, plan.grasp_pose), (plan.pre_grasp_joint_positions, plan.pre_grasp_pose)):
+        q_arr = np.asarray(q)
+        assert planner.ur5.within_limits(q_arr)
+        pos_err, rot_err = planner.ur5.pose_error(planner.ur5.fk(q_arr), T)
+        assert pos_err <= 1e-5 and rot_err <= 1e-4
+
+
+@settings(max_examples=12, deadline=None)
+@given(yaw=st.floats(-math.pi, math.pi), x=st.floats(0.35, 0.6), y=st.floats(-0.25, 0.25))
+def test_strategy_c_aligns_the_cs_and_s_aligns_the_box(planner: Planner, yaw: float, x: float, y: float) -> None:
+    obj = builtin_object("box").with_pose(x, y, yaw)
+    cs = planning_model("pisa_iit_softhand").signature
+    plan_c = planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy="C"))
+    plan_s = planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy="S"))
+    assert plan_c.success, plan_c.reasons
+    assert plan_s.success, plan_s.reasons
+    assert plan_c.grasp_pose is not None and plan_s.grasp_pose is not None
+    R_c, R_s = plan_c.grasp_pose[:3, :3], plan_s.grasp_pose[:3, :3]
+    assert axis_angle_between_lines(R_c @ cs.axis, obj.o2) <= ONE_DEGREE
+    assert axis_angle_between_lines(R_s[:, 0], obj.o1) <= ONE_DEGREE
+    assert R_c[2, 2] < -0.98 and R_s[2, 2] < -0.999  # top grasps: hand +z down
+    assert plan_c.quality["alignment_error"] <= ONE_DEGREE
+    _check_kinematics(planner, plan_c)
+    _check_kinematics(planner, plan_s)
+
+
+@pytest.mark.parametrize("hand", ["pisa_iit_softhand", "sdm_hand", "rbo_hand2", "parallel_gripper"])
+@pytest.mark.parametrize("obj_name", ["box", "apple", "cylinder"])
+def test_every_hand_plans_every_builtin_object(planner: Planner, hand: str, obj_name: str) -> None:
+    obj = builtin_object(obj_name).with_pose(0.5, 0.0, 0.3)
+    for strategy in ("S", "C"):
+        plan = planner.plan(PlanRequest(hand=hand, obj=obj, strategy=strategy))  # type: ignore[arg-type]
+        assert plan.success, (hand, obj_name, strategy, plan.reasons)
+        _check_kinematics(planner, plan)
+        assert plan.quality["clearance"] is not None and plan.quality["clearance"] >= 0.004
+        approach = np.asarray(plan.approach["direction"])
+        assert approach[2] < -0.98
+        assert plan.pre_grasp_pose is not None and plan.grasp_pose is not None
+        rise = plan.pre_grasp_pose[:3, 3] - plan.grasp_pose[:3, 3]
+        np.testing.assert_allclose(rise, -approach * plan.approach["desired_distance"], atol=1e-12)
+
+
+def test_an_object_three_metres_away_is_unreachable(planner: Planner) -> None:
+    obj = builtin_object("box").with_pose(3.0, 0.0, 0.0)
+    for strategy in ("S", "C"):
+        plan = planner.plan(PlanRequest(hand="parallel_gripper", obj=obj, strategy=strategy))  # type: ignore[arg-type]
+        assert not plan.success
+        assert plan.reasons == ["unreachable"]
+        assert plan.joint_positions is None
+
+
+def test_a_wrist_pose_forced_into_the_table_is_a_collision(planner: Planner) -> None:
+    obj = builtin_object("box").with_pose(0.5, 0.1, 0.0)
+    req = PlanRequest(hand="sdm_hand", obj=obj, strategy="S")
+    plan = planner.plan(req)
+    assert plan.success and plan.grasp_pose is not None
+    assert planner.check_wrist_pose(req, plan.grasp_pose) == []
+    sunk = plan.grasp_pose.copy()
+    sunk[2, 3] -= 0.03  # 3 cm lower: the fingertips go through the table top
+    sunk[0, 3] += 0.12  # beside the object, so only the table is in the way
+    reasons = planner.check_wrist_pose(req, sunk)
+    assert "collision:table" in reasons
+
+
+def test_the_yaw_closer_to_the_current_configuration_wins(planner: Planner) -> None:
+    obj = builtin_object("box").with_pose(0.5, 0.1, 0.2)
+    first = planner.plan(PlanRequest(hand="parallel_gripper", obj=obj, strategy="S"))
+    assert first.success and first.grasp_pose is not None and first.joint_positions is not None
+    # the other branch: the same grasp turned by pi about the approach; start next to its IK solution
+    other = first.grasp_pose.copy()
+    other[:3, :2] *= -1.0
+    ik = planner.ur5.solve_ik(other, np.asarray(first.joint_positions))
+    assert ik.success
+    second = planner.plan(PlanRequest(hand="parallel_gripper", obj=obj, strategy="S", current_q=tuple(ik.q)))
+    assert second.success and second.grasp_pose is not None and second.joint_positions is not None
+    x1, x2 = first.grasp_pose[:3, 0], second.grasp_pose[:3, 0]
+    assert float(x1 @ x2) < -0.999  # the opposite yaw was chosen
+    assert np.linalg.norm(np.asarray(second.joint_positions) - ik.q) < np.linalg.norm(
+        np.asarray(first.joint_positions) - ik.q
+    )
+
+
+def test_plan_json_poses_round_trip_the_quaternion(planner: Planner) -> None:
+    obj = builtin_object("cylinder").with_pose(0.45, -0.1, 1.0)
+    plan = planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy="C"))
+    data = plan.to_json_dict()
+    assert set(data) >= {
+        "success", "reasons", "strategy", "hand", "object", "joint_names", "joint_positions",
+        "pre_grasp_joint_positions", "grasp_pose", "pre_grasp_pose", "approach", "quality", "timing",
+    }  # fmt: skip
+    pose = data["grasp_pose"]
+    assert pose["frame_id"] == "base_link" and set(pose["orientation"]) == {"x", "y", "z", "w"}
+    back = Pose.from_wire(pose)
+    assert plan.grasp_pose is not None
+    np.testing.assert_allclose(quat_to_matrix(back.quaternion), plan.grasp_pose[:3, :3], atol=1e-12)
+    np.testing.assert_allclose(back.position, plan.grasp_pose[:3, 3], atol=1e-12)
+    assert set(data["quality"]) == {"alignment_error", "ik_residual", "clearance"}
+
+
+def test_bad_requests_name_the_field() -> None:
+    obj = builtin_object("box")
+    with pytest.raises(InvalidInput) as info:
+        PlanRequest(hand="sdm_hand", obj=obj, strategy="X")  # type: ignore[arg-type]
+    assert info.value.field == "strategy" and info.value.choices == ["C", "S"]
+    with pytest.raises(InvalidInput) as info:
+        PlanRequest(hand="sdm_hand", obj=obj, strategy="S", approach_distance=float("nan"))
+    assert info.value.field == "approach_distance"
