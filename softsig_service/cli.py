@@ -24,6 +24,8 @@ app = typer.Typer(
 )
 hands_app = typer.Typer(help="The hand library: list, show, close and render hands.", no_args_is_help=True)
 app.add_typer(hands_app, name="hands")
+signature_app = typer.Typer(help="Closure and stiffness signatures of a hand.", no_args_is_help=True)
+app.add_typer(signature_app, name="signature")
 
 
 @contextmanager
@@ -138,6 +140,136 @@ def hands_render(
         image = render_open_closed(load_hand(hand, Settings()), width=size, height=size)
         save_png(image, out)
         typer.echo(f"wrote {out} ({image.shape[1]}x{image.shape[0]})")
+
+
+@signature_app.command("closure")
+def signature_closure(
+    hand: Annotated[str | None, typer.Argument(help="built-in name or path to hand.toml (simulated closure)")] = None,
+    markers: Annotated[
+        Path | None, typer.Option("--markers", help="tracked markers instead: CSV (time,point,x,y,z) or JSON")
+    ] = None,
+    method: Annotated[str, typer.Option(help="ellipsoid | pca | mesh")] = "ellipsoid",
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    plot: Annotated[Path | None, typer.Option("--plot", help="PNG/PDF/SVG of points, ellipsoids and the CS")] = None,
+) -> None:
+    """Compute a hand's closure signature (CS) from a simulated closure or from tracked markers."""
+    from softsig_service.errors import InvalidInput
+    from softsig_service.signatures.closure import METHODS, compute_closure_signature
+
+    with _errors():
+        if method not in METHODS:
+            raise InvalidInput("unknown closure-signature method", field="method", value=method, choices=METHODS)
+        if (hand is None) == (markers is None):
+            raise InvalidInput("give either a hand or --markers FILE", field="hand")
+        if markers is not None:
+            from softsig_service.signatures.markers import load_markers
+
+            traj = load_markers(markers)
+        else:
+            from softsig_service.hands.closure import simulate_closure
+            from softsig_service.hands.model import load_hand
+
+            assert hand is not None
+            traj = simulate_closure(load_hand(hand, Settings()), surface_points=None if method == "mesh" else 0)
+        cs = compute_closure_signature(traj, method)
+        if plot is not None:
+            from softsig_service.signatures.plot import plot_closure_signature
+
+            plot_closure_signature(traj, cs, plot)
+        data = cs.to_json_dict()
+
+        def text() -> str:
+            ax = ", ".join(f"{v:+.3f}" for v in cs.axis)
+            lines = [
+                f"{traj.hand}: closure signature ({method}) in the hand frame",
+                f"  axis        ({ax})",
+                f"  anchor      ({', '.join(f'{v:.4f}' for v in cs.anchor)}) m",
+                f"  magnitude   {cs.magnitude:+.4f}  [{data['extras'].get('magnitude_unit', '')}]",
+                f"  deformation {', '.join(f'{v:+.4f}' for v in cs.deformation)}",
+                f"  distinctness {cs.distinctness:.3g}" + ("  (ambiguous)" if cs.ambiguous else ""),
+            ]
+            if plot is not None:
+                lines.append(f"  wrote {plot}")
+            return "\n".join(lines)
+
+        _emit(data, as_json, text)
+
+
+def _object_arg(spec: str, x: float, y: float, yaw: float) -> Any:
+    """``box|apple|cylinder`` or a path to an object JSON, placed at (x, y, yaw) on the table."""
+    from softsig_service.errors import InvalidInput
+    from softsig_service.planning.objects import BUILTIN_NAMES, builtin_object, object_from_json
+
+    if spec in BUILTIN_NAMES:
+        return builtin_object(spec, x=x, y=y, yaw=yaw)
+    path = Path(spec)
+    if not path.suffix == ".json" or not path.is_file():
+        raise InvalidInput("object must be a built-in name or a JSON file", field="object", value=spec,
+                           choices=[*BUILTIN_NAMES, "PATH.json"])  # fmt: skip
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InvalidInput(f"object file is not valid JSON: {exc}", field="object", value=spec) from None
+    if isinstance(data, dict):
+        data = {**data, "pose": {**data.get("pose", {}), "x": x, "y": y, "yaw": yaw}}
+    return object_from_json(data)
+
+
+def _floats(text: str, n: int, field: str) -> tuple[float, ...]:
+    from softsig_service.errors import InvalidInput
+
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise InvalidInput("expected comma-separated numbers", field=field, value=text) from None
+    if len(values) != n:
+        raise InvalidInput(f"expected {n} comma-separated numbers", field=field, value=text)
+    return values
+
+
+@app.command("plan")
+def plan(
+    hand: Annotated[str, typer.Option("--hand", help="built-in name or path to hand.toml")],
+    obj: Annotated[str, typer.Option("--object", help="box | apple | cylinder | PATH.json")],
+    x: Annotated[float, typer.Option("--x", help="object centre x in base_link [m]")] = 0.5,
+    y: Annotated[float, typer.Option("--y", help="object centre y in base_link [m]")] = 0.0,
+    yaw: Annotated[float, typer.Option("--yaw", help="object yaw about world z [rad]")] = 0.0,
+    strategy: Annotated[str, typer.Option("--strategy", help="S (bounding box) | C (closure signature)")] = "C",
+    current_q: Annotated[
+        str | None, typer.Option("--current-q", help="current UR5 joints q1,...,q6 [rad] (default: home)")
+    ] = None,
+    closing_axis: Annotated[str, typer.Option(help="object axis the CS closes across: minor | major")] = "minor",
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+) -> None:
+    """Plan a UR5 top grasp of an object on the table with strategy S or C."""
+    from softsig_service.planning.planner import Planner, PlanRequest
+
+    with _errors():
+        q = _floats(current_q, 6, "current_q") if current_q is not None else None
+        request = PlanRequest(
+            hand=hand, obj=_object_arg(obj, x, y, yaw), strategy=strategy,  # type: ignore[arg-type]
+            current_q=q, closing_axis=closing_axis,  # type: ignore[arg-type]
+        )  # fmt: skip
+        result = Planner().plan(request)
+        data = result.to_json_dict()
+
+        def text() -> str:
+            lines = [f"{result.hand} / {request.obj.name or request.obj.kind} / strategy {result.strategy}: "
+                     + ("success" if result.success else "FAILED: " + ", ".join(result.reasons))]  # fmt: skip
+            if result.grasp_pose is not None:
+                p = result.grasp_pose[:3, 3]
+                lines.append(f"  grasp flange at ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m in base_link")
+            if result.joint_positions is not None:
+                lines.append("  joints " + ", ".join(f"{v:+.4f}" for v in result.joint_positions) + " rad")
+            qual = result.quality
+            if qual["alignment_error"] is not None:
+                lines.append(f"  alignment error {qual['alignment_error']:.2e} rad, clearance {qual['clearance']}")
+            lines.append(f"  time {result.timing['total'] * 1e3:.1f} ms")
+            return "\n".join(lines)
+
+        _emit(data, as_json, text)
+        if not result.success:
+            raise typer.Exit(1)
 
 
 @app.command("summary")

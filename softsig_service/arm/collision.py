@@ -318,6 +318,7 @@ class CollisionWorld:
         self._model = ur5.model
         self._data = ur5.model.createData()
         self._object: tuple[coal.CollisionGeometry, FloatArray] | None = None
+        self._object_key: tuple[object, ...] | None = None
         self._build()
 
     # -- construction ------------------------------------------------------------------------------------
@@ -395,14 +396,23 @@ class CollisionWorld:
                 ``softsig_service.planning.objects`` primitives), MuJoCo size conventions.
             pose: 4x4 pose ``T_world_shape`` of the shape frame [m].
         """
-        geo = object_geometry(shape)
         T = check_transform(pose, field="object.pose").copy()
-        self._object = (geo, T)
+        key = (shape.kind, tuple(shape.size), None if shape.vertices is None else np.asarray(shape.vertices).tobytes())
+        if self._object is not None and key == self._object_key:
+            # same shape, new pose: move the existing geometry instead of rebuilding the world
+            geo = self._object[0]
+            self._object = (geo, T)
+            oid = self._gm.getGeometryId(OBJECT_NAME)
+            self._gm.geometryObjects[oid].placement = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
+            return
+        self._object = (object_geometry(shape), T)
+        self._object_key = key
         self._build()
 
     def clear_object(self) -> None:
         """Remove the object from the world."""
         self._object = None
+        self._object_key = None
         self._build()
 
     @property

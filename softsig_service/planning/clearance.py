@@ -44,26 +44,57 @@ class HandClearance:
 
     def __init__(self, hand_shapes: Sequence[HandShape], obj: TableObject | None, table_height: float) -> None:
         self._shapes = [(s.geometry(), np.asarray(s.pose_in_hand)) for s in hand_shapes]
+        for geom, _ in self._shapes:
+            geom.computeLocalAABB()
+        # bounding spheres (centre in the hand frame, radius) for culling exact distance queries
+        self._centres = np.array([T[:3, 3] + T[:3, :3] @ g.aabb_center for g, T in self._shapes]).reshape(-1, 3)
+        self._radii = np.array([g.aabb_radius for g, _ in self._shapes])
+        self._table_height = table_height
         self._table = coal.Box(6.0, 6.0, 2 * TABLE_HALF_THICKNESS)
         T_table = np.eye(4)
         T_table[2, 3] = table_height - TABLE_HALF_THICKNESS
         self._table_tf = _tf(T_table)
         self._object = None
+        self._object_centre = np.zeros(3)
+        self._object_radius = 0.0
         if obj is not None:
-            self._object = (object_geometry(obj.primitive()), _tf(obj.primitive_pose))
+            geom = object_geometry(obj.primitive())
+            geom.computeLocalAABB()
+            T_obj = obj.primitive_pose
+            self._object = (geom, _tf(T_obj))
+            self._object_centre = T_obj[:3, 3] + T_obj[:3, :3] @ geom.aabb_center
+            self._object_radius = float(geom.aabb_radius)
         self._req = coal.DistanceRequest()
 
     def distances(self, T_world_hand: NDArray[np.float64]) -> tuple[float, float]:
-        """(to the table, to the object) [m]; negative inside; +inf for a missing object."""
-        d_table = d_obj = float("inf")
-        for geom, T_shape in self._shapes:
-            tf = _tf(T_world_hand @ T_shape)
-            res = coal.DistanceResult()
-            d_table = min(d_table, coal.distance(geom, tf, self._table, self._table_tf, self._req, res))
-            if self._object is not None:
-                res = coal.DistanceResult()
-                d_obj = min(d_obj, coal.distance(geom, tf, self._object[0], self._object[1], self._req, res))
+        """(to the table, to the object) [m]; negative inside; +inf for a missing object.
+
+        Exact coal distances, queried only for shapes whose bounding sphere could beat the best found so far.
+        """
+        centres = self._centres @ T_world_hand[:3, :3].T + T_world_hand[:3, 3]
+        bound_table = centres[:, 2] - self._table_height - self._radii
+        d_table = self._nearest(T_world_hand, bound_table, self._table, self._table_tf)
+        d_obj = float("inf")
+        if self._object is not None:
+            gap = np.linalg.norm(centres - self._object_centre, axis=1) - self._radii - self._object_radius
+            d_obj = self._nearest(T_world_hand, gap, *self._object)
         return d_table, d_obj
+
+    def _nearest(
+        self,
+        T_world_hand: NDArray[np.float64],
+        lower_bounds: NDArray[np.float64],
+        other: coal.CollisionGeometry,
+        other_tf: coal.Transform3s,
+    ) -> float:
+        best = float("inf")
+        for k in np.argsort(lower_bounds):
+            if lower_bounds[k] >= best:
+                break
+            geom, T_shape = self._shapes[k]
+            res = coal.DistanceResult()
+            best = min(best, coal.distance(geom, _tf(T_world_hand @ T_shape), other, other_tf, self._req, res))
+        return best
 
     def descend(
         self,

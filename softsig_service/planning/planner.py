@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from softsig_service.arm.collision import CollisionWorld, HandShape
-from softsig_service.arm.ur5 import UR5, load_ur5
+from softsig_service.arm.ur5 import HOME_Q, UR5, load_ur5
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.transforms import Pose, matrix_to_quat
@@ -42,11 +42,9 @@ from softsig_service.planning.strategies import STRATEGIES, axis_angle_between_l
 from softsig_service.planning.wrist_pose import solve_wrist_pose
 from softsig_service.signatures.closure import ClosureSignature, compute_closure_signature
 
-HOME_Q = (0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0)
-"""Default current configuration [rad]: flange pointing down at (0.49, 0.11, 0.43) m."""
 START_HEIGHT = 0.5
 """[m] the descent starts this far above the object's centre along the approach."""
-APPROACH_WAYPOINTS = 5
+APPROACH_WAYPOINTS = 4
 
 
 @dataclass(frozen=True)
@@ -88,7 +86,7 @@ def planning_model(hand_ref: str, method: str = "ellipsoid", settings: Settings 
 
 @dataclass(frozen=True)
 class PlanRequest:
-    """A top-grasp request. ``current_q`` [rad] defaults to :data:`HOME_Q`; distances in [m]."""
+    """A top-grasp request. ``current_q`` [rad] defaults to the UR5's ``HOME_Q``; distances in [m]."""
 
     hand: str
     obj: TableObject
@@ -224,12 +222,19 @@ class Planner:
                     continue
                 t1 = time.perf_counter()
                 self._place(c, clearance, req, center)
-                t_col += time.perf_counter() - t1
+                t2 = time.perf_counter()
+                t_col += t2 - t1
                 if not c.reasons:
-                    dt_ik, dt_col = self._evaluate(c, q_now, req, world)
-                    t_ik, t_col = t_ik + dt_ik, t_col + dt_col
+                    self._solve_grasp(c, q_now)
+                t_ik += time.perf_counter() - t2
+            # the branch closest to the current configuration first; the other only if the first fails
+            for c in sorted((c for c in candidates if not c.reasons), key=lambda c: c.distance):
+                dt_ik, dt_col = self._finish(c, req, world)
+                t_ik, t_col = t_ik + dt_ik, t_col + dt_col
+                if not c.reasons:
+                    break
 
-        feasible = [c for c in candidates if not c.reasons]
+        feasible = [c for c in candidates if not c.reasons and c.q_pre is not None]
         best = min(feasible, key=lambda c: c.distance) if feasible else _most_advanced(candidates)
         R = best.T[:3, :3]
         if req.strategy == "C":
@@ -266,15 +271,16 @@ class Planner:
             solver={"status": best.status, "iterations": best.iterations, "cs_method": req.cs_method},
         )
 
-    def _evaluate(
-        self, c: _Candidate, q_now: NDArray[np.float64], req: PlanRequest, world: CollisionWorld
-    ) -> tuple[float, float]:
-        """IK and collision checks of a placed candidate; returns (IK time, collision time) [s]."""
+    def _finish(self, c: _Candidate, req: PlanRequest, world: CollisionWorld) -> tuple[float, float]:
+        """Pre-grasp IK, approach waypoints and collision checks of a candidate with a grasp IK solution.
+
+        Returns (IK time, collision time) [s].
+        """
         t0 = time.perf_counter()
-        self._solve(c, q_now, req)
+        path = self._approach_path(c, req)
         t1 = time.perf_counter()
-        if not c.reasons:
-            self._check(c, world)
+        if path is not None:
+            self._check(c, world, path)
         return t1 - t0, time.perf_counter() - t1
 
     def check_wrist_pose(self, req: PlanRequest, T_grasp: NDArray[np.float64]) -> list[str]:
@@ -290,7 +296,9 @@ class Planner:
         with self._lock:
             world = self._world(model, req.obj.table_height)
             world.set_object(req.obj.primitive(), req.obj.primitive_pose)
-            self._evaluate(c, q_now, req, world)
+            self._solve_grasp(c, q_now)
+            if not c.reasons:
+                self._finish(c, req, world)
         return c.reasons
 
     def _place(self, c: _Candidate, clearance: HandClearance, req: PlanRequest, center: NDArray[np.float64]) -> None:
@@ -308,24 +316,26 @@ class Planner:
         c.T_pre = c.T.copy()
         c.T_pre[:3, 3] -= direction * req.approach_distance
 
-    def _solve(self, c: _Candidate, q_now: NDArray[np.float64], req: PlanRequest) -> None:
+    def _solve_grasp(self, c: _Candidate, q_now: NDArray[np.float64]) -> None:
         ik = self.ur5.solve_ik(c.T, q_now)
         if not ik.success:
             c.reasons.append("unreachable")
             return
-        assert c.T_pre is not None
-        pre = self.ur5.solve_ik(c.T_pre, ik.q)
-        if not pre.success:
-            c.reasons.append("unreachable:pre_grasp")
-            return
-        c.q, c.q_pre = ik.q, pre.q
-        c.ik_residual = max(ik.position_residual, pre.position_residual)
+        c.q = ik.q
+        c.ik_residual = ik.position_residual
         c.distance = float(np.linalg.norm(ik.q - q_now))
 
-    def _check(self, c: _Candidate, world: CollisionWorld) -> None:
-        assert c.q is not None and c.q_pre is not None and c.T_pre is not None
-        path = [c.q_pre]
-        q = c.q_pre
+    def _approach_path(self, c: _Candidate, req: PlanRequest) -> list[NDArray[np.float64]] | None:
+        """Joint configurations from the pre-grasp down the straight approach to the grasp (None: unreachable)."""
+        assert c.q is not None and c.T_pre is not None
+        pre = self.ur5.solve_ik(c.T_pre, c.q)
+        if not pre.success:
+            c.reasons.append("unreachable:pre_grasp")
+            return None
+        c.q_pre = pre.q
+        c.ik_residual = max(c.ik_residual or 0.0, pre.position_residual)
+        path = [pre.q]
+        q = pre.q
         for k in range(1, APPROACH_WAYPOINTS):
             s = k / APPROACH_WAYPOINTS
             T = c.T_pre.copy()
@@ -333,13 +343,16 @@ class Planner:
             ik = self.ur5.solve_ik(T, q, analytic=False, seeds=0)
             if not ik.success:
                 c.reasons.append("unreachable:approach")
-                return
+                return None
             q = ik.q
             path.append(q)
         path.append(c.q)
         if float(np.max(np.abs(np.diff(np.array(path), axis=0)))) > 0.5:
             c.reasons.append("unreachable:approach")  # a branch flip: the arm would not move straight
-            return
+            return None
+        return path
+
+    def _check(self, c: _Candidate, world: CollisionWorld, path: list[NDArray[np.float64]]) -> None:
         report = world.check_waypoints(np.array(path), distances=False)
         if report.in_collision:
             c.reasons.extend(report.reasons)

@@ -275,3 +275,26 @@ def test_bad_shapes_are_rejected(ur5: UR5) -> None:
         world.set_object(ObjectShape("sphere", (math.nan,)), np.eye(4))
     with pytest.raises(InvalidInput):
         world.check(np.full(6, np.nan))
+
+
+def test_moving_the_same_object_updates_its_pose() -> None:
+    """set_object with an unchanged shape only moves it; the checks follow the new pose."""
+    from softsig_service.arm.collision import CollisionWorld, HandShape, ObjectShape
+    from softsig_service.arm.ur5 import HOME_Q, load_ur5
+
+    ur5 = load_ur5()
+    world = CollisionWorld(ur5, [HandShape("box", (0.03, 0.03, 0.03), np.eye(4), "palm")])
+    q = np.asarray(HOME_Q)
+    flange = ur5.fk(q)[:3, 3]
+    box = ObjectShape("box", (0.02, 0.02, 0.02))
+    far = np.eye(4)
+    far[:3, 3] = flange + np.array([0.0, 0.3, 0.0])
+    world.set_object(box, far)
+    assert not world.check(q).in_collision
+    near = np.eye(4)
+    near[:3, 3] = flange + np.array([0.0, 0.0, 0.03])
+    world.set_object(box, near)
+    report = world.check(q)
+    assert "collision:object" in report.reasons
+    world.set_object(box, far)
+    assert not world.check(q).in_collision

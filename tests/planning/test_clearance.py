@@ -1,0 +1,74 @@
+"""The open hand's clearance to table and object: culled distances equal brute force; the descent stops at contact."""
+
+from __future__ import annotations
+
+import math
+
+import coal
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from softsig_service.arm.collision import object_geometry
+from softsig_service.planning.clearance import TABLE_HALF_THICKNESS, HandClearance
+from softsig_service.planning.objects import builtin_object
+from softsig_service.planning.planner import planning_model
+from softsig_service.planning.wrist_pose import hand_rotation
+
+
+def _brute_force(hc: HandClearance, T: np.ndarray) -> tuple[float, float]:
+    table = coal.Box(6.0, 6.0, 2 * TABLE_HALF_THICKNESS)
+    T_table = np.eye(4)
+    T_table[2, 3] = -TABLE_HALF_THICKNESS
+    obj = builtin_object("cylinder").with_pose(0.5, 0.0, 0.7)
+    geo = object_geometry(obj.primitive())
+    Tp = obj.primitive_pose
+    req = coal.DistanceRequest()
+    dt = do = math.inf
+    for g, Ts in hc._shapes:
+        W = T @ Ts
+        tf = coal.Transform3s(W[:3, :3].copy(), W[:3, 3].copy())
+        dt = min(dt, coal.distance(g, tf, table, coal.Transform3s(T_table[:3, :3].copy(), T_table[:3, 3].copy()),
+                                   req, coal.DistanceResult()))  # fmt: skip
+        do = min(do, coal.distance(g, tf, geo, coal.Transform3s(Tp[:3, :3].copy(), Tp[:3, 3].copy()),
+                                   req, coal.DistanceResult()))  # fmt: skip
+    return dt, do
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    x=st.floats(0.35, 0.65), y=st.floats(-0.15, 0.15), z=st.floats(0.05, 0.4),
+    yaw=st.floats(-math.pi, math.pi), roll=st.floats(-0.2, 0.2), pitch=st.floats(-0.2, 0.2),
+)  # fmt: skip
+def test_culled_distances_equal_brute_force(
+    x: float, y: float, z: float, yaw: float, roll: float, pitch: float
+) -> None:
+    shapes = planning_model("rbo_hand2").shapes
+    hc = HandClearance(shapes, builtin_object("cylinder").with_pose(0.5, 0.0, 0.7), 0.0)
+    T = np.eye(4)
+    T[:3, :3] = hand_rotation(yaw, roll, pitch)
+    T[:3, 3] = (x, y, z)
+    fast = hc.distances(T)
+    slow = _brute_force(hc, T)
+    np.testing.assert_allclose(fast, slow, atol=1e-9)
+
+
+def test_descent_stops_at_the_margin_on_the_first_obstacle() -> None:
+    shapes = planning_model("parallel_gripper").shapes
+    obj = builtin_object("box").with_pose(0.5, 0.0, 0.0)
+    hc = HandClearance(shapes, obj, 0.0)
+    T = np.eye(4)
+    T[:3, :3] = hand_rotation(0.0, 0.0, 0.0)  # jaws closing across world y, over the box's long side
+    T[:3, 3] = (0.5, 0.0, 0.6)
+    down = np.array([0.0, 0.0, -1.0])
+    d = hc.descend(T, down, max_travel=1.0, margin=0.005)
+    assert d.limited_by in ("table", "object")
+    assert abs(d.distance - 0.005) < 2e-4
+    assert min(hc.distances(d.T_world_hand)) >= 0.005 - 2e-4
+    # one more millimetre down would break the margin
+    lower = d.T_world_hand.copy()
+    lower[2, 3] -= 0.001
+    assert min(hc.distances(lower)) < 0.005
+    # a free path reports the travel limit
+    short = hc.descend(T, down, max_travel=0.05, margin=0.005)
+    assert short.limited_by == "travel" and short.travel == 0.05
