@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.ellipsoid import DEFAULT_TOL, Ellipsoid, mvee, mvee_batch
+from softsig_service.geometry.transforms import quat_to_matrix
 
 FAST = settings(max_examples=40, deadline=None)
 
@@ -20,14 +21,7 @@ OCTAHEDRON = np.vstack([np.eye(3), -np.eye(3)])
 
 def rotation(q: tuple[float, float, float, float]) -> NDArray[np.float64]:
     """Rotation matrix of the (not necessarily unit) quaternion q = (w, x, y, z)."""
-    w, x, y, z = np.asarray(q) / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    return quat_to_matrix(q)
 
 
 quaternions = st.tuples(*[st.floats(-1.0, 1.0) for _ in range(4)]).filter(

@@ -14,6 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from softsig_service.errors import InvalidInput, InvalidTrajectory
 from softsig_service.geometry.pca import orient_axes, principal_components
+from softsig_service.geometry.transforms import quat_to_matrix
 from softsig_service.hands.trajectory import ClosureTrajectory
 from softsig_service.signatures.closure import (
     DISTINCTNESS_CAP,
@@ -37,14 +38,7 @@ NAMES = ("thumb", "index", "middle", "ring", "little", "wrist", "p6", "p7", "p8"
 
 def rotation(q: tuple[float, float, float, float]) -> NDArray[np.float64]:
     """Rotation matrix of the (not necessarily unit) quaternion q = (w, x, y, z)."""
-    w, x, y, z = np.asarray(q) / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    return quat_to_matrix(q)
 
 
 quaternions = st.tuples(*[st.floats(-1.0, 1.0) for _ in range(4)]).filter(
