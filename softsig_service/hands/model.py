@@ -171,9 +171,7 @@ def compile_hand(
     except ValueError as exc:
         raise InvalidHandModel(f"MuJoCo cannot compile the model: {exc}", field="model") from None
     _check_size(model, limits)
-    mount = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, manifest.mount)
-    if mount < 0:
-        raise FrameNotFound("mount body not found", field="mount", value=manifest.mount, choices=_names(model, "body"))
+    mount = _lookup(model, "body", manifest.mount, "mount")
     if model.body_jntnum[mount] != 0 or model.body_parentid[mount] != 0:
         raise InvalidHandModel(
             "the mount body must be a child of the world with no joint (the wrist is fixed)",
@@ -199,6 +197,22 @@ def _names(model: mujoco.MjModel, kind: Literal["body", "site", "actuator", "joi
     count = {"body": model.nbody, "site": model.nsite, "actuator": model.nu, "joint": model.njnt}[kind]
     getter = {"body": model.body, "site": model.site, "actuator": model.actuator, "joint": model.joint}[kind]
     return [getter(i).name for i in range(count) if getter(i).name]
+
+
+_OBJ_TYPES = {
+    "body": mujoco.mjtObj.mjOBJ_BODY,
+    "site": mujoco.mjtObj.mjOBJ_SITE,
+    "actuator": mujoco.mjtObj.mjOBJ_ACTUATOR,
+    "joint": mujoco.mjtObj.mjOBJ_JOINT,
+}
+
+
+def _lookup(model: mujoco.MjModel, kind: Literal["body", "site", "actuator", "joint"], name: str, field: str) -> int:
+    """The id of the named element, or :class:`FrameNotFound` naming ``field`` and the model's names."""
+    idx = int(mujoco.mj_name2id(model, _OBJ_TYPES[kind], name))
+    if idx < 0:
+        raise FrameNotFound(f"{kind} not found", field=field, value=name, choices=_names(model, kind))
+    return idx
 
 
 def _check_size(model: mujoco.MjModel, limits: ModelLimits) -> None:
@@ -231,25 +245,11 @@ def _resolve_points(manifest: HandManifest, model: mujoco.MjModel) -> tuple[Poin
     out = []
     for k, p in enumerate(manifest.reference_points):
         if p.site is not None:
-            sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, p.site)
-            if sid < 0:
-                raise FrameNotFound(
-                    "site not found",
-                    field=f"reference_points[{k}].site",
-                    value=p.site,
-                    choices=_names(model, "site"),
-                )
+            sid = _lookup(model, "site", p.site, f"reference_points[{k}].site")
             out.append(PointSpec(p.name, "site", sid, (0.0, 0.0, 0.0)))
         else:
             assert p.body is not None
-            bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, p.body)
-            if bid < 0:
-                raise FrameNotFound(
-                    "body not found",
-                    field=f"reference_points[{k}].body",
-                    value=p.body,
-                    choices=_names(model, "body"),
-                )
+            bid = _lookup(model, "body", p.body, f"reference_points[{k}].body")
             out.append(PointSpec(p.name, "body", bid, p.offset))
     return tuple(out)
 
@@ -266,16 +266,6 @@ def _closure_controls(
             hi.append(closure.closed[joint])
             posture.append((int(model.jnt_qposadr[model.joint(joint).id]), closure.open[joint]))
         return tuple(ids), np.array(lo), np.array(hi), tuple(posture)
-    ids = []
-    for k, name in enumerate(closure.actuators):
-        aid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
-        if aid < 0:
-            raise FrameNotFound(
-                "actuator not found",
-                field=f"closure.actuators[{k}]",
-                value=name,
-                choices=_names(model, "actuator"),
-            )
-        ids.append(aid)
+    ids = [_lookup(model, "actuator", name, f"closure.actuators[{k}]") for k, name in enumerate(closure.actuators)]
     n = len(ids)
     return tuple(ids), np.full(n, closure.open), np.full(n, closure.closed), ()
