@@ -195,6 +195,69 @@ def signature_closure(
         _emit(data, as_json, text)
 
 
+@signature_app.command("stiffness")
+def signature_stiffness(
+    hand: Annotated[str, typer.Argument(help="built-in name or path to hand.toml")],
+    obj: Annotated[
+        str, typer.Option("--object", help="box | apple | cylinder | sphere:R (radius [m]) | PATH.json")
+    ] = "apple",
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    plot: Annotated[Path | None, typer.Option("--plot", help="PNG of break forces and the stiffness ellipsoid")] = None,
+    axes_only: Annotated[
+        bool, typer.Option("--axes-only", help="pull along +-x, +-y, +-z only (6 directions)")
+    ] = False,
+) -> None:
+    """Grasp an object in MuJoCo: 6x6 grasp stiffness at the object and break forces per pull direction."""
+    from softsig_service.hands.model import load_hand
+    from softsig_service.signatures.pullout import AXIS_DIRECTIONS, compute_stiffness_signature
+
+    with _errors():
+        the_obj = _stiffness_object(obj)
+        ss = compute_stiffness_signature(
+            load_hand(hand, Settings()), the_obj, directions=AXIS_DIRECTIONS if axes_only else None
+        )
+        if plot is not None:
+            from softsig_service.signatures.ss_plot import plot_stiffness_signature
+
+            plot_stiffness_signature(ss, plot)
+        data = ss.to_json_dict()
+
+        def text() -> str:
+            pt, pr = ss.principal_translational, ss.principal_rotational
+            held = data["parameters"]["grasp"]["held"]
+            lines = [
+                f"{hand}: stiffness signature on {data['object'].get('name') or data['object'].get('kind')} "
+                f"(hand frame){'' if held else ' - the hand does not hold the object on its own'}",
+                "  translational stiffness [N/m]  " + ", ".join(f"{v:.4g}" for v in pt.values),
+                "  rotational stiffness [N·m/rad] " + ", ".join(f"{v:.4g}" for v in pr.values),
+                "  break forces [N]:",
+            ]
+            for b in ss.break_forces:
+                d = ", ".join(f"{v:+.2f}" for v in b.direction)
+                lines.append(f"    ({d})  {b.force:7.2f}  {b.reason}")
+            if plot is not None:
+                lines.append(f"  wrote {plot}")
+            return "\n".join(lines)
+
+        _emit(data, as_json, text)
+
+
+def _stiffness_object(spec: str) -> Any:
+    """``box|apple|cylinder``, ``sphere:R`` (radius [m]) or a JSON file: the object held in the hand."""
+    from softsig_service.errors import InvalidInput
+    from softsig_service.planning.objects import BUILTIN_NAMES, builtin_object, sphere
+
+    if spec in BUILTIN_NAMES:
+        return builtin_object(spec)
+    if spec.startswith("sphere:"):
+        try:
+            radius = float(spec.split(":", 1)[1])
+        except ValueError:
+            raise InvalidInput("sphere:R needs a radius in metres", field="object", value=spec) from None
+        return sphere(radius, mass=0.1)
+    return _object_arg(spec, 0.5, 0.0, 0.0)
+
+
 def _object_arg(spec: str, x: float, y: float, yaw: float) -> Any:
     """``box|apple|cylinder`` or a path to an object JSON, placed at (x, y, yaw) on the table."""
     from softsig_service.errors import InvalidInput
