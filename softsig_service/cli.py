@@ -361,6 +361,67 @@ def summary(as_json: Annotated[bool, typer.Option("--json", help="print JSON")] 
         _emit(rows, as_json, text)
 
 
+@app.command("serve")
+def serve(
+    host: Annotated[str | None, typer.Option(help="address to listen on (default SOFTSIG_HOST or 127.0.0.1)")] = None,
+    port: Annotated[int | None, typer.Option(help="port (default SOFTSIG_PORT or 8000)", min=0, max=65535)] = None,
+    db: Annotated[
+        Path | None, typer.Option("--db", help="SQLite file of the registry (default in SOFTSIG_DATA_DIR)")
+    ] = None,
+) -> None:
+    """Run the REST service (uvicorn): hand and signature registry, plans, validation jobs; docs at /docs."""
+    import uvicorn
+
+    from softsig_service.api.app import create_app
+    from softsig_service.api.logging import configure_logging
+
+    with _errors():
+        overrides: dict[str, Any] = {}
+        if host is not None:
+            overrides["host"] = host
+        if port is not None:
+            overrides["port"] = port
+        if db is not None:
+            overrides["database_url"] = f"sqlite:///{db.expanduser().resolve()}"
+        settings = Settings(**overrides)
+        configure_logging(settings.log_level)
+        uvicorn.run(
+            create_app(settings), host=settings.host, port=settings.port, log_config=None, access_log=False,
+            timeout_graceful_shutdown=10,
+        )  # fmt: skip
+
+
+@app.command("openapi")
+def openapi(
+    out: Annotated[Path, typer.Option("--out", help="file to write")] = Path("openapi/openapi.json"),
+    check: Annotated[bool, typer.Option("--check", help="exit 1 if the file differs from the app's schema")] = False,
+) -> None:
+    """Export the service's OpenAPI document (sorted keys, indent 2), or check the committed one."""
+    from softsig_service.api.app import openapi_json
+
+    text = openapi_json()
+    if check:
+        current = out.read_text(encoding="utf-8") if out.is_file() else None
+        if current != text:
+            typer.echo(f"{out} is out of date: run `softsig openapi --out {out}`", err=True)
+            raise typer.Exit(1)
+        typer.echo(f"{out} is up to date")
+        return
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text, encoding="utf-8")
+    typer.echo(f"wrote {out}")
+
+
+def _register_simulation_commands() -> None:
+    from softsig_service.simulation.commands import experiment_app, validate
+
+    app.command("validate")(validate)
+    app.add_typer(experiment_app, name="experiment")
+
+
+_register_simulation_commands()
+
+
 def main() -> None:
     """Entry point for ``python -m softsig_service.cli``."""
     app(prog_name="softsig")

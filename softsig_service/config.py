@@ -7,9 +7,10 @@ environment itself.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated, Any
 
-from pydantic import Field
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic import Field, SecretStr, field_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 REPO_HANDS_DIR = Path(__file__).resolve().parent.parent / "hands"
 """The built-in hands shipped beside the package (``hands/`` at the project root)."""
@@ -32,7 +33,69 @@ class ModelLimits(BaseSettings):
 class Settings(BaseSettings):
     """Service-wide settings; every field can be set as ``SOFTSIG_<NAME>`` in the environment."""
 
-    model_config = SettingsConfigDict(env_prefix="SOFTSIG_", extra="forbid")
+    model_config = SettingsConfigDict(env_prefix="SOFTSIG_", extra="forbid", frozen=True)
 
     hands_dir: Path = Field(REPO_HANDS_DIR, description="folder of the built-in hands")
     limits: ModelLimits = Field(default_factory=ModelLimits)
+
+    # -- the REST service (softsig serve; docs/api.md) ------------------------------------------------------
+    data_dir: Path = Field(
+        Path("softsig-data"),
+        description="folder of the service's files: registered hands, job results, plan images, and the SQLite "
+        "registry when database_url is not set",
+    )
+    database_url: str | None = Field(
+        None,
+        description="SQLAlchemy URL of the registry (e.g. postgresql+psycopg://user@host/db); default: the SQLite "
+        "file <data_dir>/registry.sqlite3",
+    )
+    db_busy_timeout: float = Field(10.0, gt=0.0, le=600.0, description="SQLite busy timeout [s]")
+    api_keys: Annotated[tuple[SecretStr, ...], NoDecode] = Field(
+        default_factory=tuple,
+        description="keys accepted in X-API-Key (comma-separated in SOFTSIG_API_KEYS); writes need one, and with "
+        "no key configured every write is refused",
+    )
+    read_auth: bool = Field(False, description="reads need an API key too")
+    require_if_match: bool = Field(
+        True, description="updates and deletes of a hand without If-Match get 428 (Precondition Required)"
+    )
+    max_body_bytes: int = Field(4_000_000, gt=0, description="largest request body except uploads [bytes]")
+    max_upload_bytes: int = Field(
+        110_000_000, gt=0, description="largest multipart upload (hand files, marker files) [bytes]"
+    )
+    max_job_trials: int = Field(
+        2000, gt=0, description="most simulated trials one validation or experiment job may run"
+    )
+    max_job_seconds: float = Field(3600.0, gt=0.0, description="wall-time cap of one job [s]")
+    job_workers: int = Field(1, ge=1, le=64, description="jobs running at the same time (each in its own process)")
+    max_queued_jobs: int = Field(32, ge=1, description="jobs waiting or running before submissions get 503")
+    compute_workers: int = Field(
+        1, ge=1, le=64, description="worker processes for synchronous CPU work (signatures, hand checks, images)"
+    )
+    compute_timeout: float = Field(120.0, gt=0.0, description="wall-time cap of one synchronous computation [s]")
+    warm_planner: bool = Field(True, description="build the planning models of the built-in hands at startup")
+    host: str = Field("127.0.0.1", description="address softsig serve listens on")
+    port: int = Field(8000, ge=0, le=65535, description="port softsig serve listens on")
+    log_level: str = Field("info", description="log level of softsig serve (debug, info, warning, error)")
+
+    @field_validator("api_keys", mode="before")
+    @classmethod
+    def _split_keys(cls, value: Any) -> Any:
+        """``SOFTSIG_API_KEYS`` is a comma-separated list (a JSON list works too); blanks are dropped."""
+        if isinstance(value, str):
+            text = value.strip()
+            if text.startswith("["):
+                import json
+
+                value = json.loads(text)
+            else:
+                value = text.split(",")
+        if isinstance(value, list | tuple):
+            return [v.strip() if isinstance(v, str) else v for v in value if not isinstance(v, str) or v.strip()]
+        return value
+
+    def resolved_database_url(self) -> str:
+        """``database_url``, or the SQLite file ``<data_dir>/registry.sqlite3``."""
+        if self.database_url:
+            return self.database_url
+        return f"sqlite:///{(self.data_dir / 'registry.sqlite3').resolve()}"

@@ -78,3 +78,31 @@ class SolverError(SoftsigError):
 
 class RenderUnavailable(SoftsigError):
     """Offscreen rendering was requested but no OpenGL backend could be created."""
+
+
+class NotFound(SoftsigError):
+    """A stored resource (plan, signature version, job, result file) that does not exist."""
+
+
+class Conflict(SoftsigError):
+    """A request that conflicts with the current state: a name taken, a built-in hand, a finished job."""
+
+
+class PreconditionFailed(SoftsigError):
+    """An ``If-Match`` that does not match the resource's current ETag."""
+
+
+class PreconditionRequired(SoftsigError):
+    """An update or delete without the ``If-Match`` the service requires."""
+
+
+class Unauthorized(SoftsigError):
+    """A missing or unknown API key."""
+
+
+class TimeLimitExceeded(SoftsigError):
+    """A computation that did not finish within its wall-time cap."""
+
+
+class ServiceBusy(SoftsigError):
+    """The service cannot take the work now (job queue full, worker pool restarting); retry later."""

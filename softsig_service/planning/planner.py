@@ -195,25 +195,29 @@ class Planner:
         closing = obj.o2 if req.closing_axis == "minor" else obj.o1
         center = obj.center
 
-        t0 = time.perf_counter()
-        candidates: list[_Candidate] = []
-        if req.strategy == "C":
-            sols = solve_wrist_pose(
-                model.signature.axis, model.signature.anchor, model.points_open, center, closing,
-                table_height=obj.table_height, margin=req.margin,
-            )  # fmt: skip
-            for s in sols:
-                c = _Candidate(T=s.T_world_hand, status=s.status, iterations=s.iterations)
-                if not s.success:
-                    c.reasons.append("alignment_impossible" if s.status == "alignment_impossible" else "unreachable")
-                candidates.append(c)
-        else:
-            for T in strategy_s_poses(center, obj.o1, model.bbox_center):
-                candidates.append(_Candidate(T=T, status="closed_form", iterations=0))
-        t_strategy = time.perf_counter() - t0
-
-        t_ik = t_col = 0.0
+        # one plan at a time per planner: the compiled CasADi solvers, Pinocchio data and the coal world are
+        # shared state and not re-entrant
         with self._lock:
+            t0 = time.perf_counter()
+            candidates: list[_Candidate] = []
+            if req.strategy == "C":
+                sols = solve_wrist_pose(
+                    model.signature.axis, model.signature.anchor, model.points_open, center, closing,
+                    table_height=obj.table_height, margin=req.margin,
+                )  # fmt: skip
+                for s in sols:
+                    c = _Candidate(T=s.T_world_hand, status=s.status, iterations=s.iterations)
+                    if not s.success:
+                        c.reasons.append(
+                            "alignment_impossible" if s.status == "alignment_impossible" else "unreachable"
+                        )
+                    candidates.append(c)
+            else:
+                for T in strategy_s_poses(center, obj.o1, model.bbox_center):
+                    candidates.append(_Candidate(T=T, status="closed_form", iterations=0))
+            t_strategy = time.perf_counter() - t0
+
+            t_ik = t_col = 0.0
             world = self._world(model, obj.table_height)
             world.set_object(obj.primitive(), obj.primitive_pose)
             clearance = HandClearance(model.shapes, obj, obj.table_height)

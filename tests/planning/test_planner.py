@@ -133,3 +133,21 @@ def test_bad_requests_name_the_field() -> None:
     with pytest.raises(InvalidInput) as info:
         PlanRequest(hand="sdm_hand", obj=obj, strategy="S", approach_distance=float("nan"))
     assert info.value.field == "approach_distance"
+
+
+def test_concurrent_plans_from_threads_match_sequential_ones(planner: Planner) -> None:
+    """One planner serves several threads (the web service does): same answers, no crash."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    requests = [
+        PlanRequest(hand=h, obj=builtin_object("box").with_pose(0.45 + 0.02 * k, -0.1 + 0.04 * k, 0.3 * k), strategy=s)
+        for k in range(4)
+        for h in ("pisa_iit_softhand", "parallel_gripper")
+        for s in ("S", "C")
+    ]  # type: ignore[arg-type]
+    sequential = [planner.plan(r) for r in requests]
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        parallel = list(pool.map(planner.plan, requests * 2))
+    for a, b in zip(sequential * 2, parallel, strict=True):
+        assert a.success == b.success
+        assert a.joint_positions == b.joint_positions

@@ -1,0 +1,191 @@
+"""Plan requests over HTTP against a ``softsig serve`` subprocess on loopback: throughput and latency percentiles.
+
+Run: .venv/bin/python benchmarks/bench_api.py [--requests 400] [--concurrency 8] [--seconds 60] [--strategy C]
+
+The server runs on a free loopback port with a fresh data folder (SQLite registry inside). Each client thread
+keeps one HTTP/1.1 connection (httpx) and posts ``POST /v1/plans`` for the built-in box at random poses
+(x in [0.4, 0.6] m, y in [-0.15, 0.15] m, yaw in [-pi, pi]; fixed seed) until ``--requests`` are done or
+``--seconds`` have passed. Printed per run: requests per second, p50/p90/p99 latency [ms] measured by the client,
+and the server's own split from its Prometheus metrics: mean planner time per plan and mean time in the HTTP
+stack per request (so the rest is queueing and the client). Runs: concurrency 1 (the latency of one request
+alone), then ``--concurrency`` with plans stored and with ``store: false``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import random
+import re
+import signal
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+KEY = "bench-key"
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def start_server(data: Path) -> tuple[subprocess.Popen[bytes], str]:
+    port = free_port()
+    env = {**os.environ, "SOFTSIG_DATA_DIR": str(data), "SOFTSIG_API_KEYS": KEY, "SOFTSIG_LOG_LEVEL": "warning"}
+    cmd = [sys.executable, "-m", "softsig_service.cli", "serve", "--host", "127.0.0.1", "--port", str(port)]
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    url = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        try:
+            if httpx.get(f"{url}/readyz", timeout=1).status_code == 200:
+                return proc, url
+        except httpx.HTTPError:
+            pass
+        if proc.poll() is not None:
+            raise SystemExit(f"softsig serve exited with {proc.returncode}")
+        time.sleep(0.1)
+    proc.kill()
+    raise SystemExit("softsig serve did not become ready within 60 s")
+
+
+def metric_sum_count(text: str, name: str, label: str = "") -> tuple[float, float]:
+    total = count = 0.0
+    for line in text.splitlines():
+        if label and label not in line:
+            continue
+        if m := re.match(rf"{name}_sum(\{{[^}}]*\}})? ([0-9.eE+-]+)$", line):
+            total += float(m.group(2))
+        elif m := re.match(rf"{name}_count(\{{[^}}]*\}})? ([0-9.eE+-]+)$", line):
+            count += float(m.group(2))
+    return total, count
+
+
+def run(url: str, *, n: int, concurrency: int, seconds: float, strategy: str, store: bool) -> dict[str, Any]:
+    rng = random.Random(7)
+    bodies = [
+        {
+            "hand": "pisa_iit_softhand",
+            "object": {"kind": "builtin", "name": "box",
+                       "pose": {"x": rng.uniform(0.4, 0.6), "y": rng.uniform(-0.15, 0.15),
+                                "yaw": rng.uniform(-math.pi, math.pi)}},
+            "strategy": strategy,
+            "store": store,
+        }
+        for _ in range(n)
+    ]  # fmt: skip
+    latencies: list[float] = []
+    failures: list[str] = []
+    lock = threading.Lock()
+    next_index = 0
+    deadline = time.monotonic() + seconds
+
+    def worker() -> None:
+        nonlocal next_index
+        with httpx.Client(base_url=url, headers={"X-API-Key": KEY}, timeout=30) as client:
+            while time.monotonic() < deadline:
+                with lock:
+                    if next_index >= n:
+                        return
+                    body = bodies[next_index]
+                    next_index += 1
+                t0 = time.perf_counter()
+                r = client.post("/v1/plans", json=body)
+                dt = time.perf_counter() - t0
+                with lock:
+                    if r.status_code == 201:
+                        latencies.append(dt)
+                    else:
+                        failures.append(f"{r.status_code} {r.text[:200]}")
+
+    before = httpx.get(f"{url}/metrics").text
+    t0 = time.perf_counter()
+    threads = [threading.Thread(target=worker) for _ in range(concurrency)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    wall = time.perf_counter() - t0
+    after = httpx.get(f"{url}/metrics").text
+    plan_s = [a - b for a, b in zip(metric_sum_count(after, "softsig_plan_seconds"),
+                                    metric_sum_count(before, "softsig_plan_seconds"), strict=True)]  # fmt: skip
+    http_s = [
+        a - b
+        for a, b in zip(
+            metric_sum_count(after, "softsig_http_request_duration_seconds", 'route="/v1/plans"'),
+            metric_sum_count(before, "softsig_http_request_duration_seconds", 'route="/v1/plans"'),
+            strict=True,
+        )
+    ]
+    lat = sorted(latencies)
+
+    def pct(p: float) -> float:
+        return lat[min(len(lat) - 1, round(p / 100 * (len(lat) - 1)))] * 1e3 if lat else float("nan")
+
+    return {
+        "concurrency": concurrency,
+        "store": store,
+        "requests": len(lat),
+        "failures": len(failures),
+        "first_failure": failures[0] if failures else "",
+        "rps": len(lat) / wall if wall > 0 else 0.0,
+        "p50": pct(50),
+        "p90": pct(90),
+        "p99": pct(99),
+        "mean": statistics.fmean(lat) * 1e3 if lat else float("nan"),
+        "planner_mean": plan_s[0] / plan_s[1] * 1e3 if plan_s[1] else float("nan"),
+        "server_mean": http_s[0] / http_s[1] * 1e3 if http_s[1] else float("nan"),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--requests", type=int, default=400, help="requests per run")
+    parser.add_argument("--concurrency", type=int, default=8)
+    parser.add_argument("--seconds", type=float, default=60.0, help="time cap per run [s]")
+    parser.add_argument("--strategy", choices=("S", "C"), default="C")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp:
+        proc, url = start_server(Path(tmp))
+        try:
+            run(url, n=30, concurrency=2, seconds=30, strategy=args.strategy, store=True)  # warm-up
+            rows = [
+                run(url, n=max(50, args.requests // 4), concurrency=1, seconds=args.seconds, strategy=args.strategy,
+                    store=True),
+                run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
+                    strategy=args.strategy, store=True),
+                run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
+                    strategy=args.strategy, store=False),
+            ]  # fmt: skip
+        finally:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+    print(f"POST /v1/plans, strategy {args.strategy}, pisa_iit_softhand, box at random poses; {os.cpu_count()} CPUs")
+    print(f"{'conc':>4} {'store':>5} {'n':>5} {'fail':>4} {'req/s':>7} {'p50 ms':>7} {'p90 ms':>7} {'p99 ms':>7} "
+          f"{'planner ms':>10} {'server ms':>9}")  # fmt: skip
+    for r in rows:
+        print(f"{r['concurrency']:4d} {('yes' if r['store'] else 'no'):>5} {r['requests']:5d} {r['failures']:4d} "
+              f"{r['rps']:7.1f} {r['p50']:7.2f} {r['p90']:7.2f} {r['p99']:7.2f} {r['planner_mean']:10.2f} "
+              f"{r['server_mean']:9.2f}")  # fmt: skip
+        if r["first_failure"]:
+            print(f"     first failure: {r['first_failure']}")
+    print("planner ms: mean planner time per plan (server metric softsig_plan_seconds); server ms: mean time the")
+    print("request spent in the server's HTTP stack (softsig_http_request_duration_seconds, route /v1/plans).")
+
+
+if __name__ == "__main__":
+    main()

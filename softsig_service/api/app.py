@@ -1,0 +1,200 @@
+"""The REST service: ``create_app(settings)`` and its lifespan.
+
+At startup the lifespan opens the registry (creating its tables), registers the built-in hands found in
+``settings.hands_dir`` that are not registered yet, builds the planner once for the app (UR5 model, collision
+worlds; with ``warm_planner`` also the planning models of the built-in hands), starts the compute pool and the job
+manager, and marks jobs left unfinished by a previous run as failed. At shutdown it kills running jobs and stops the
+worker processes.
+
+Routes live under ``/v1`` (``routes/``); ``/healthz``, ``/readyz`` and ``/metrics`` at the root. Middleware, from
+the outside in: request id + access log + metrics (``api/logging.py``), then the body limit (``api/problems.py``).
+``openapi/openapi.json`` is :func:`openapi_json` of an app with default settings (the schema does not depend on
+settings).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+from collections.abc import AsyncIterator, Mapping
+from contextlib import asynccontextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from fastapi import FastAPI
+from starlette.concurrency import run_in_threadpool
+
+from softsig_service import __version__
+from softsig_service.api.jobs import ComputePool, JobKind, JobManager
+from softsig_service.api.logging import Metrics, RequestContextMiddleware
+from softsig_service.api.problems import BodyLimitMiddleware, install_problem_handlers
+from softsig_service.config import Settings
+from softsig_service.registry import repository as repo
+from softsig_service.registry.db import Registry
+
+log = logging.getLogger("softsig.api")
+
+UPLOAD_PATHS: tuple[str, ...] = (r"/v1/hands", r"/v1/hands/[^/]+", r"/v1/hands/[^/]+/signatures/markers")
+"""Paths whose bodies are multipart uploads (limit ``max_upload_bytes``)."""
+
+DESCRIPTION = """\
+softsig over HTTP: a versioned registry of hands and their closure and stiffness signatures, top-grasp planning
+for a UR5, and validation jobs in MuJoCo.
+
+* Units are SI (m, rad, s, kg, N). The world frame is the UR5 `base_link` (z up); poses carry `frame_id` and
+  named quaternion fields `{x, y, z, w}`; signatures are in the hand frame (origin at the flange, +z the approach).
+* Writes need `X-API-Key`; reads are open unless the service says otherwise.
+* Errors are RFC 9457 `application/problem+json` naming the offending `field`.
+* Updates and deletes of a hand need `If-Match` with its `ETag` (428 without, 412 on a mismatch).
+* Long work (validations, experiments) answers `202 Accepted` with `Location: /v1/jobs/{id}`.
+"""
+
+
+@dataclass
+class AppContext:
+    """Everything the routes need, made once per app by the lifespan."""
+
+    settings: Settings
+    registry: Registry
+    planner: Any
+    pool: ComputePool
+    jobs: JobManager
+    metrics: Metrics
+    api_keys: list[str]
+    hands_dir: Path
+    plans_dir: Path
+    plan_lock: threading.Lock = field(default_factory=threading.Lock)
+    """Serialises ``planner.plan``: the planner solves its CasADi NLP outside its own lock, and concurrent calls
+    corrupt memory (seen as heap corruption with 2-4 threads); one plan at a time costs little since most of a
+    plan runs under the planner's lock anyway."""
+    _hand_cache: dict[str, repo.HandRecord] = field(default_factory=dict)
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def hand(self, name: str, *, field: str = "hand") -> repo.HandRecord:
+        """The registered hand ``name`` (cached; :meth:`forget_hand` after a change)."""
+        with self._lock:
+            cached = self._hand_cache.get(name)
+        if cached is not None:
+            return cached
+        record = repo.get_hand(self.registry, name, field=field)
+        with self._lock:
+            self._hand_cache[name] = record
+        return record
+
+    def forget_hand(self, name: str) -> None:
+        """Drop ``name`` from the hand cache."""
+        with self._lock:
+            self._hand_cache.pop(name, None)
+
+
+def default_job_kinds() -> dict[str, JobKind]:
+    """The job kinds the service offers (validations and experiments once their modules exist)."""
+    from softsig_service.api.routes.jobs import available_job_kinds
+
+    return available_job_kinds()
+
+
+def register_builtin_hands(registry: Registry, settings: Settings) -> dict[str, str]:
+    """Register (or refresh) every built-in hand of ``settings.hands_dir``; returns name -> what happened."""
+    from softsig_service.api.jobs import inspect_hand
+    from softsig_service.hands.model import builtin_hand_names
+
+    done: dict[str, str] = {}
+    for name in builtin_hand_names(settings):
+        manifest = (settings.hands_dir / name / "hand.toml").resolve()
+        info = inspect_hand(str(manifest), settings.limits)
+        done[name] = repo.sync_builtin_hand(registry, name=name, manifest_path=str(manifest), info=info)
+    return done
+
+
+def _startup(settings: Settings, registry: Registry) -> Any:
+    """Blocking startup work (run in a thread): built-in hands, the planner and its warm-up."""
+    from softsig_service.planning.planner import Planner, planning_model
+
+    done = register_builtin_hands(registry, settings)
+    added = [n for n, what in done.items() if what == "added"]
+    if added:
+        log.info("registered built-in hands: %s", ", ".join(added))
+    planner = Planner()
+    if settings.warm_planner:
+        for record in repo.list_hands(registry):
+            if record.builtin:
+                planning_model(record.manifest_path)
+    return planner
+
+
+def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobKind] | None = None) -> FastAPI:
+    """The FastAPI app of the service. ``job_kinds`` adds kinds of jobs to the default ones (tests)."""
+    settings = settings or Settings()
+    metrics = Metrics()
+    kinds = {**default_job_kinds(), **(job_kinds or {})}
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        data_dir = settings.data_dir
+        hands_dir, plans_dir, jobs_dir = data_dir / "hands", data_dir / "plans", data_dir / "jobs"
+        for d in (hands_dir, plans_dir, jobs_dir):
+            d.mkdir(parents=True, exist_ok=True)
+        registry = await run_in_threadpool(
+            lambda: Registry(settings.resolved_database_url(), busy_timeout=settings.db_busy_timeout)
+        )
+        pool = ComputePool(settings.compute_workers, settings.compute_timeout)
+        jobs = JobManager(registry, settings, kinds, jobs_dir, metrics)
+        try:
+            planner = await run_in_threadpool(_startup, settings, registry)
+            await jobs.start()
+            pool.warm()
+            app.state.ctx = AppContext(
+                settings=settings,
+                registry=registry,
+                planner=planner,
+                pool=pool,
+                jobs=jobs,
+                metrics=metrics,
+                api_keys=[k.get_secret_value() for k in settings.api_keys],
+                hands_dir=hands_dir,
+                plans_dir=plans_dir,
+            )
+            log.info("softsig service ready (registry %s)", registry.engine.url.render_as_string(hide_password=True))
+            yield
+        finally:
+            await jobs.shutdown()
+            pool.shutdown()
+            registry.dispose()
+
+    app = FastAPI(
+        title="softsig",
+        version=__version__,
+        description=DESCRIPTION,
+        lifespan=lifespan,
+        openapi_tags=[
+            {"name": "hands", "description": "the hand registry: built-in and uploaded hands"},
+            {"name": "signatures", "description": "versioned closure and stiffness signatures of a hand"},
+            {"name": "plans", "description": "top-grasp planning for the UR5 (strategies S and C)"},
+            {"name": "jobs", "description": "validations and experiments in MuJoCo, run as jobs"},
+            {"name": "operations", "description": "health, readiness and metrics"},
+        ],
+    )
+    install_problem_handlers(app)
+    app.add_middleware(
+        BodyLimitMiddleware,
+        max_body_bytes=settings.max_body_bytes,
+        max_upload_bytes=settings.max_upload_bytes,
+        upload_paths=UPLOAD_PATHS,
+    )
+    from softsig_service.api.routes import hands, jobs, ops, plans, signatures
+
+    routers = (ops.router, hands.router, signatures.router, plans.router, jobs.router)
+    for router in routers:
+        app.include_router(router)
+    templates = [route for router in routers for route in router.routes]
+    app.add_middleware(RequestContextMiddleware, metrics=metrics, routes=templates)
+    return app
+
+
+def openapi_json(app: FastAPI | None = None) -> str:
+    """The OpenAPI document of the app as committed in ``openapi/openapi.json`` (sorted keys, indent 2)."""
+    app = app or create_app(Settings())
+    return json.dumps(app.openapi(), sort_keys=True, indent=2, ensure_ascii=False) + "\n"

@@ -1,0 +1,268 @@
+"""``/v1/jobs``, ``/v1/validations``, ``/v1/experiments``: long work run as jobs in worker processes.
+
+Submitting answers ``202 Accepted`` with ``Location: /v1/jobs/{id}``; ``GET /v1/jobs/{id}`` gives status,
+progress and (when done) the result; ``DELETE /v1/jobs/{id}`` cancels a queued or running job (its processes are
+killed); ``GET /v1/jobs/{id}/files`` lists the result files (JSON, CSV, Markdown, PNG...) and
+``GET /v1/jobs/{id}/files/{name}`` downloads one.
+
+Job kinds (``kind`` of a job): ``stiffness_signature`` (``POST /v1/hands/{hand}/signatures`` with
+``{"kind": "stiffness"}``; the signature is stored as a new version when the job succeeds), ``validation``
+(``POST /v1/validations``) and ``experiment`` (``POST /v1/experiments``). Caps: ``max_job_trials`` trials per job
+(an experiment has 18 cells), ``max_job_seconds`` of wall time.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Path, Query
+from fastapi.responses import FileResponse, JSONResponse
+from starlette.concurrency import run_in_threadpool
+
+from softsig_service.api.app import AppContext
+from softsig_service.api.deps import Ctx, ReadAccess, WriteAccess
+from softsig_service.api.jobs import JobKind, list_files, media_type, resolve_file
+from softsig_service.api.routes.common import READ, WRITE, Limit, Offset, problem
+from softsig_service.api.schemas import (
+    ExperimentIn,
+    JobFiles,
+    JobList,
+    JobOut,
+    StiffnessSignatureIn,
+    ValidationIn,
+    object_json,
+)
+from softsig_service.errors import HandNotFound, InvalidInput, NotFound, ServiceBusy
+from softsig_service.planning.objects import object_from_json
+from softsig_service.registry import repository as repo
+from softsig_service.registry.db import Registry
+
+router = APIRouter(prefix="/v1", tags=["jobs"])
+JobId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="a job's id")]
+
+
+def _has(module: str) -> bool:
+    try:
+        return importlib.util.find_spec(module) is not None
+    except ModuleNotFoundError:
+        return False
+
+
+def _store_stiffness(registry: Registry, params: dict[str, Any], result: dict[str, Any]) -> dict[str, Any]:
+    """Store a finished stiffness signature as a new version of the hand (the job's ``on_result`` hook)."""
+    rec = repo.add_signature(
+        registry,
+        params["hand"],
+        kind="stiffness",
+        method=str(params["object"].get("name") or params["object"].get("kind")),
+        source="simulation",
+        data=result["signature"],
+        params={"object": params["object"]},
+        hand_revision=params.get("hand_revision"),
+        if_match=params.get("if_match"),
+    )
+    return {
+        "hand": rec.hand,
+        "version": rec.version,
+        "etag": rec.etag,
+        "links": {"signature": f"/v1/hands/{rec.hand}/signatures/{rec.version}"},
+    }
+
+
+def available_job_kinds() -> dict[str, JobKind]:
+    """The job kinds whose implementation is present in this installation."""
+    kinds: dict[str, JobKind] = {}
+    if _has("softsig_service.signatures.pullout"):
+        kinds["stiffness_signature"] = JobKind(
+            "stiffness_signature",
+            "softsig_service.api.jobs:run_stiffness_signature",
+            "grasp an object in MuJoCo: 6x6 stiffness and break forces; stored as a signature version",
+            on_result=_store_stiffness,
+        )
+    if _has("softsig_service.simulation.rollout") and _has("softsig_service.simulation.campaign"):
+        kinds["validation"] = JobKind(
+            "validation",
+            "softsig_service.api.jobs:run_validation",
+            "simulate a plan's grasp in MuJoCo, trials under object-pose noise",
+        )
+        kinds["experiment"] = JobKind(
+            "experiment",
+            "softsig_service.api.jobs:run_experiment",
+            "the reference experiment (Table I): conditions x objects x strategies x trials",
+        )
+    return kinds
+
+
+def _hand_for_job(ctx: AppContext, name: str) -> repo.HandRecord:
+    try:
+        return ctx.hand(name)
+    except HandNotFound as exc:
+        raise InvalidInput("unknown hand", field="hand", value=name, choices=exc.choices) from None
+
+
+def _hand_ref(hand: repo.HandRecord) -> str:
+    """How a worker names the hand: built-in hands by name, uploaded ones by their manifest path."""
+    return hand.name if hand.builtin else hand.manifest_path
+
+
+def _check_trials(ctx: AppContext, n: int, what: str) -> None:
+    cap = ctx.settings.max_job_trials
+    if n > cap:
+        raise InvalidInput(f"{what} asks for {n} trials; the service allows at most {cap}", field="trials", value=n)
+
+
+def _require_kind(ctx: AppContext, kind: str) -> None:
+    if kind not in ctx.jobs.kinds:
+        raise ServiceBusy(f"{kind} jobs are not available in this installation", field="kind", value=kind)
+
+
+@router.post(
+    "/validations",
+    status_code=202,
+    response_model=JobOut,
+    dependencies=[WriteAccess],
+    responses={503: problem("the job queue is full (Retry-After)"), **WRITE},
+    summary="Validate a grasp in MuJoCo (a job)",
+)
+async def create_validation(ctx: Ctx, body: ValidationIn) -> JSONResponse:
+    """Plan the grasp of ``object`` on its nominal pose and simulate ``trials`` rollouts with the object
+    perturbed (DESIGN §7). 202 with the job and ``Location: /v1/jobs/{id}``; its result has ``trials``,
+    ``successes`` and ``outcomes`` (one ``{seed, success, reason, lift_height}`` per trial); files
+    ``validation.json`` and ``outcomes.csv``."""
+    _require_kind(ctx, "validation")
+    _check_trials(ctx, body.trials, "the validation")
+    hand = await run_in_threadpool(_hand_for_job, ctx, body.hand)
+    obj = object_json(body.object)
+    await run_in_threadpool(lambda: object_from_json(obj))  # bad objects fail now, naming the field
+    params = {
+        "hand": hand.name, "object": obj, "strategy": body.strategy, "sigma_r": body.sigma_r,
+        "sigma_t": body.sigma_t, "trials": body.trials, "seed": body.seed,
+    }  # fmt: skip
+    job = await ctx.jobs.submit("validation", params, body.time_limit, private={"hand_ref": _hand_ref(hand)})
+    return accepted(job)
+
+
+@router.post(
+    "/experiments",
+    status_code=202,
+    response_model=JobOut,
+    dependencies=[WriteAccess],
+    responses={503: problem("the job queue is full (Retry-After)"), **WRITE},
+    summary="Run the reference experiment, Table I (a job)",
+)
+async def create_experiment(ctx: Ctx, body: ExperimentIn) -> JSONResponse:
+    """The paper's Table I in simulation: 3 conditions x 3 objects x strategies S and C x ``trials`` per cell.
+    202 with the job; when done its files are ``report.md`` (Table I layout, Wilson intervals, Fisher tests),
+    ``results.json``, ``results.csv``, ``table1.png``, ``trials.jsonl`` and ``campaign.json``."""
+    _require_kind(ctx, "experiment")
+    _check_trials(ctx, 18 * body.trials, "the experiment (18 cells)")
+    hand = await run_in_threadpool(_hand_for_job, ctx, body.hand)
+    params = {"name": body.name, "hand": hand.name, "trials": body.trials, "seed": body.seed, "workers": body.workers}
+    job = await ctx.jobs.submit("experiment", params, body.time_limit, private={"hand_ref": _hand_ref(hand)})
+    return accepted(job)
+
+
+def job_out(rec: repo.JobRecord) -> dict[str, Any]:
+    """The JSON of :class:`JobOut`."""
+    return {
+        "id": rec.id,
+        "kind": rec.kind,
+        "status": rec.status,
+        "progress": rec.progress,
+        "message": rec.message,
+        "params": rec.params,
+        "result": rec.result,
+        "error": rec.error,
+        "time_limit": rec.time_limit,
+        "cancel_requested": rec.cancel_requested,
+        "created_at": rec.created_at,
+        "started_at": rec.started_at,
+        "finished_at": rec.finished_at,
+        "links": {"self": f"/v1/jobs/{rec.id}", "files": f"/v1/jobs/{rec.id}/files"},
+    }
+
+
+def accepted(rec: repo.JobRecord) -> JSONResponse:
+    """``202 Accepted`` with ``Location: /v1/jobs/{id}`` and the job."""
+    body = JobOut.model_validate(job_out(rec)).model_dump(mode="json")
+    return JSONResponse(body, status_code=202, headers={"Location": f"/v1/jobs/{rec.id}"})
+
+
+async def stiffness_signature_version(
+    ctx: AppContext, hand: repo.HandRecord, body: StiffnessSignatureIn, if_match: str | None
+) -> repo.JobRecord:
+    """Submit the stiffness-signature job of ``hand`` (stored as a new version when it succeeds)."""
+    params = {"hand": hand.name, "object": object_json(body.object), "hand_revision": hand.revision}
+    if if_match is not None:
+        params["if_match"] = if_match
+    private = {"manifest_path": hand.manifest_path, "limits": ctx.settings.limits.model_dump()}
+    return await ctx.jobs.submit("stiffness_signature", params, private=private)
+
+
+@router.get("/jobs", response_model=JobList, dependencies=[ReadAccess], responses=READ, summary="List jobs")
+def list_jobs(
+    ctx: Ctx,
+    kind: Annotated[str | None, Query(max_length=32, description="only jobs of this kind")] = None,
+    status: Annotated[
+        Literal["queued", "running", "succeeded", "failed", "cancelled", "timed_out"] | None,
+        Query(description="only jobs in this status"),
+    ] = None,
+    limit: Limit = 50,
+    offset: Offset = 0,
+) -> dict[str, Any]:
+    """Jobs, newest first."""
+    items, total = repo.list_jobs(ctx.registry, kind=kind, status=status, limit=limit, offset=offset)
+    return {"items": [job_out(r) for r in items], "total": total, "limit": limit, "offset": offset}
+
+
+@router.get("/jobs/{job_id}", response_model=JobOut, dependencies=[ReadAccess], responses=READ, summary="Get a job")
+def get_job(ctx: Ctx, job_id: JobId) -> dict[str, Any]:
+    """Status, progress in [0, 1], and the result or the error when finished."""
+    return job_out(repo.get_job(ctx.registry, job_id))
+
+
+@router.delete(
+    "/jobs/{job_id}",
+    status_code=202,
+    response_model=JobOut,
+    dependencies=[WriteAccess],
+    responses={409: problem("the job has finished already"), 404: problem("no such job"), **WRITE},
+    summary="Cancel a job",
+)
+async def cancel_job(ctx: Ctx, job_id: JobId) -> dict[str, Any]:
+    """Cancel a queued or running job: 202, and the job becomes ``cancelled`` (its processes are killed)."""
+    return job_out(await ctx.jobs.cancel(job_id))
+
+
+@router.get(
+    "/jobs/{job_id}/files",
+    response_model=JobFiles,
+    dependencies=[ReadAccess],
+    responses=READ,
+    summary="List a job's result files",
+)
+def job_files(ctx: Ctx, job_id: JobId) -> dict[str, Any]:
+    """The files the job wrote (JSON, CSV, Markdown, PNG...), with sizes [bytes] and download URLs."""
+    repo.get_job(ctx.registry, job_id)
+    items = [
+        {"name": name, "size": size, "media_type": media_type(name), "url": f"/v1/jobs/{job_id}/files/{name}"}
+        for name, size in list_files(ctx.jobs.out_dir(job_id))
+    ]
+    return {"items": items}
+
+
+@router.get(
+    "/jobs/{job_id}/files/{name:path}",
+    response_class=FileResponse,
+    dependencies=[ReadAccess],
+    responses={200: {"description": "the file", "content": {"application/octet-stream": {}}}, **READ},
+    summary="Download a job's result file",
+)
+async def job_file(ctx: Ctx, job_id: JobId, name: str) -> FileResponse:
+    """One result file, with its media type."""
+    await run_in_threadpool(repo.get_job, ctx.registry, job_id)
+    path = resolve_file(ctx.jobs.out_dir(job_id), name)
+    if path is None:
+        raise NotFound("no such result file", field="name", value=name)
+    return FileResponse(path, media_type=media_type(name), filename=path.name)

@@ -1,0 +1,141 @@
+"""``/v1/plans``: plan a UR5 top grasp (synchronous), get a stored plan, draw it.
+
+Planning is CPU-bound but fast (milliseconds): the handler is a plain function, so FastAPI runs it in its
+threadpool, never in the event loop; the app's one :class:`~softsig_service.planning.planner.Planner` keeps its
+models and solvers between requests. An infeasible request is not an error: the plan has ``success: false`` and
+machine-readable ``reasons``.
+"""
+
+from __future__ import annotations
+
+import os
+import uuid
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Path, Query, Response
+from starlette.concurrency import run_in_threadpool
+
+from softsig_service.api.app import AppContext
+from softsig_service.api.deps import Ctx, ReadAccess, WriteAccess
+from softsig_service.api.jobs import render_plan_png
+from softsig_service.api.routes.common import READ, WRITE, Limit, Offset, problem
+from softsig_service.api.schemas import HAND_NAME_PATTERN, PlanIn, PlanList, PlanOut, object_json, to_jsonable
+from softsig_service.errors import HandNotFound, InvalidInput
+from softsig_service.registry import repository as repo
+
+router = APIRouter(prefix="/v1", tags=["plans"])
+PlanId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="a stored plan's id")]
+
+
+def _links(plan_id: str) -> dict[str, str]:
+    return {"self": f"/v1/plans/{plan_id}", "image": f"/v1/plans/{plan_id}/image.png"}
+
+
+def make_plan(ctx: AppContext, body: PlanIn) -> dict[str, Any]:
+    """Plan ``body`` with the app's planner and store it (unless ``store`` is false); the plan JSON."""
+    from softsig_service.planning.objects import object_from_json
+    from softsig_service.planning.planner import PlanRequest
+
+    try:
+        hand = ctx.hand(body.hand)
+    except HandNotFound as exc:
+        raise InvalidInput("unknown hand", field="hand", value=body.hand, choices=exc.choices) from None
+    obj = object_from_json(object_json(body.object))
+    request = PlanRequest(
+        hand=hand.manifest_path,
+        obj=obj,
+        strategy=body.strategy,
+        current_q=body.current_q,
+        closing_axis=body.closing_axis,
+        approach_distance=body.approach_distance,
+        margin=body.margin,
+        cs_method=body.cs_method,
+    )
+    with ctx.plan_lock:
+        plan = ctx.planner.plan(request)
+    ctx.metrics.plan_seconds.labels(body.strategy).observe(plan.timing.get("total", 0.0))
+    data: dict[str, Any] = to_jsonable(plan.to_json_dict())
+    data["hand_revision"] = hand.revision
+    if body.store:
+        rec = repo.add_plan(
+            ctx.registry, hand=plan.hand, strategy=plan.strategy, success=plan.success,
+            request=body.model_dump(mode="json"), result=data,
+        )  # fmt: skip
+        data.update(id=rec.id, created_at=rec.created_at, links=_links(rec.id))
+    return data
+
+
+def _plan_out(rec: repo.PlanRecord) -> dict[str, Any]:
+    return {**rec.result, "id": rec.id, "created_at": rec.created_at, "links": _links(rec.id)}
+
+
+@router.post(
+    "/plans",
+    status_code=201,
+    response_model=PlanOut,
+    dependencies=[WriteAccess],
+    responses=WRITE,
+    summary="Plan a top grasp (synchronous)",
+)
+def create_plan(ctx: Ctx, body: PlanIn, response: Response) -> dict[str, Any]:
+    """Plan a UR5 top grasp of an object with strategy S or C; 201 with the plan (``success`` may be false, with
+    ``reasons``) and, when stored, ``Location``."""
+    data = make_plan(ctx, body)
+    if data.get("id"):
+        response.headers["Location"] = f"/v1/plans/{data['id']}"
+    return data
+
+
+@router.get("/plans", response_model=PlanList, dependencies=[ReadAccess], responses=READ, summary="List plans")
+def list_plans(
+    ctx: Ctx,
+    hand: Annotated[str | None, Query(pattern=HAND_NAME_PATTERN, description="only plans of this hand")] = None,
+    limit: Limit = 50,
+    offset: Offset = 0,
+) -> dict[str, Any]:
+    """Stored plans, newest first."""
+    items, total = repo.list_plans(ctx.registry, hand=hand, limit=limit, offset=offset)
+    rows = [
+        {"id": r.id, "hand": r.hand, "strategy": r.strategy, "success": r.success, "created_at": r.created_at,
+         "links": _links(r.id)}
+        for r in items
+    ]  # fmt: skip
+    return {"items": rows, "total": total, "limit": limit, "offset": offset}
+
+
+@router.get("/plans/{plan_id}", response_model=PlanOut, dependencies=[ReadAccess], responses=READ, summary="Get a plan")
+def get_plan(ctx: Ctx, plan_id: PlanId) -> dict[str, Any]:
+    """A stored plan."""
+    return _plan_out(repo.get_plan(ctx.registry, plan_id))
+
+
+@router.get(
+    "/plans/{plan_id}/image.png",
+    response_class=Response,
+    dependencies=[ReadAccess],
+    responses={
+        200: {"content": {"image/png": {}}, "description": "top view of the plan (PNG)"},
+        404: problem("no such plan"),
+        **READ,
+    },
+    summary="Draw a plan (top view, PNG)",
+)
+async def plan_image(ctx: Ctx, plan_id: PlanId) -> Response:
+    """A top view in the world x-y plane [m]: object footprint and axes, the open hand's reference points at the
+    grasp pose, flange axes, the closure signature's axis, the pre-grasp. Drawn once, then cached."""
+    path = ctx.plans_dir / f"{plan_id}.png"
+    if not path.is_file():
+        rec = await run_in_threadpool(repo.get_plan, ctx.registry, plan_id)
+        manifest: str | None = None
+        try:
+            hand = await run_in_threadpool(ctx.hand, rec.hand)
+            if hand.revision == rec.result.get("hand_revision"):
+                manifest = hand.manifest_path  # the hand as it was planned with
+        except HandNotFound:
+            pass
+        png = await ctx.pool.run(render_plan_png, rec.result, manifest, what="drawing the plan", field="plan_id")
+        tmp = path.with_name(f"{plan_id}.{uuid.uuid4().hex}.tmp")
+        await run_in_threadpool(tmp.write_bytes, png)
+        await run_in_threadpool(os.replace, tmp, path)
+        return Response(png, media_type="image/png")
+    return Response(await run_in_threadpool(path.read_bytes), media_type="image/png")

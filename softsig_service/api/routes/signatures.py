@@ -1,0 +1,208 @@
+"""``/v1/hands/{hand}/signatures``: compute and store signature versions, list them, get one or the latest.
+
+Versions are numbered per hand (closure and stiffness share the sequence), 1..N without gaps, and never
+overwritten. A new version may carry ``If-Match`` with the ETag of the hand's latest version: if another version
+was stored meanwhile the request fails with 412 and nothing is stored.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import PurePath
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Body, File, Form, Path, Query, Response, UploadFile
+from starlette.concurrency import run_in_threadpool
+
+from softsig_service.api.deps import Ctx, IfMatchOptional, ReadAccess, WriteAccess
+from softsig_service.api.jobs import closure_signature, markers_signature
+from softsig_service.api.routes.common import READ, WRITE, Limit, Offset, problem
+from softsig_service.api.schemas import (
+    HAND_NAME_PATTERN,
+    ClosureSignatureIn,
+    JobOut,
+    SignatureIn,
+    SignatureList,
+    SignatureOut,
+)
+from softsig_service.errors import InvalidTrajectory
+from softsig_service.registry import repository as repo
+
+router = APIRouter(prefix="/v1", tags=["signatures"])
+HandPath = Annotated[str, Path(pattern=HAND_NAME_PATTERN, description="the hand's name")]
+KindQuery = Annotated[Literal["closure", "stiffness"] | None, Query(description="only this kind")]
+
+
+def signature_summary(rec: repo.SignatureRecord) -> dict[str, Any]:
+    """The JSON of :class:`SignatureSummary`."""
+    return {
+        "hand": rec.hand,
+        "version": rec.version,
+        "kind": rec.kind,
+        "method": rec.method,
+        "source": rec.source,
+        "hand_revision": rec.hand_revision,
+        "etag": rec.etag,
+        "created_at": rec.created_at,
+        "links": {"self": f"/v1/hands/{rec.hand}/signatures/{rec.version}"},
+    }
+
+
+def signature_out(rec: repo.SignatureRecord) -> dict[str, Any]:
+    """The JSON of :class:`SignatureOut`."""
+    return {**signature_summary(rec), "params": rec.params, "signature": rec.data}
+
+
+def _created(response: Response, rec: repo.SignatureRecord) -> dict[str, Any]:
+    response.headers["Location"] = f"/v1/hands/{rec.hand}/signatures/{rec.version}"
+    response.headers["ETag"] = rec.etag
+    return signature_out(rec)
+
+
+@router.post(
+    "/hands/{hand}/signatures",
+    status_code=201,
+    response_model=SignatureOut,
+    dependencies=[WriteAccess],
+    responses={
+        404: problem("unknown hand"),
+        202: {"model": JobOut, "description": "stiffness: accepted as a job (Location: /v1/jobs/{id})"},
+        409: problem("the hand was replaced while the signature was computed"),
+        412: problem("If-Match does not match the latest version's ETag"),
+        **WRITE,
+    },
+    summary="Compute a signature and store it as a new version",
+)
+async def create_signature(
+    ctx: Ctx,
+    hand: HandPath,
+    response: Response,
+    if_match: IfMatchOptional,
+    body: Annotated[SignatureIn, Body()],
+) -> Any:
+    """``{"kind": "closure", "method": "ellipsoid"|"pca"|"mesh"}``: simulate the hand's free closure (in a worker
+    process) and compute its closure signature. ``{"kind": "stiffness", "object": ...}``: grasp the object and
+    compute the stiffness signature, a long computation: 202 with the job (``Location: /v1/jobs/{id}``); the
+    signature is stored as a new version when the job succeeds (its result links to it). Closure: 201 with the
+    stored version, ``Location`` and ``ETag``."""
+    record = await run_in_threadpool(ctx.hand, hand)
+    if isinstance(body, ClosureSignatureIn):
+        result = await ctx.pool.run(
+            closure_signature, record.manifest_path, ctx.settings.limits, body.method,
+            what="simulating the closure", field="method",
+        )  # fmt: skip
+        params = {"method": body.method, "closure": result["closure"]}
+        rec = await run_in_threadpool(
+            lambda: repo.add_signature(
+                ctx.registry, hand, kind="closure", method=body.method, source="simulation", data=result["signature"],
+                params=params, hand_revision=record.revision, if_match=if_match,
+            )
+        )  # fmt: skip
+        return _created(response, rec)
+    from softsig_service.api.routes.jobs import accepted, stiffness_signature_version
+
+    job = await stiffness_signature_version(ctx, record, body, if_match)
+    return accepted(job)
+
+
+@router.post(
+    "/hands/{hand}/signatures/markers",
+    status_code=201,
+    response_model=SignatureOut,
+    dependencies=[WriteAccess],
+    responses={
+        404: problem("unknown hand"),
+        412: problem("If-Match does not match the latest version's ETag"),
+        **WRITE,
+    },
+    summary="Upload tracked markers and store the closure signature computed from them",
+)
+async def upload_markers(
+    ctx: Ctx,
+    hand: HandPath,
+    response: Response,
+    if_match: IfMatchOptional,
+    file: Annotated[UploadFile, File(description="CSV time,point,x,y,z [s, m, hand frame] or trajectory JSON")],
+    method: Annotated[Literal["ellipsoid", "pca", "mesh"], Form()] = "ellipsoid",
+    strict_points: Annotated[
+        bool, Form(description="point names must be the hand's reference points (all of them)")
+    ] = True,
+) -> dict[str, Any]:
+    """Compute the closure signature from tracked marker trajectories and store it as a new version."""
+    record = await run_in_threadpool(ctx.hand, hand)
+    name = file.filename or ""
+    suffix = PurePath(name).suffix.lower()
+    ctype = (file.content_type or "").split(";")[0].strip().lower()
+    fmt = "csv" if suffix == ".csv" or (not suffix and ctype == "text/csv") else None
+    if fmt is None and (suffix == ".json" or (not suffix and ctype == "application/json")):
+        fmt = "json"
+    if fmt is None:
+        raise InvalidTrajectory("marker files are .csv or .json", field="file", value=name, choices=[".csv", ".json"])
+    raw = await file.read()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise InvalidTrajectory("the marker file is not UTF-8 text", field="file", value=name) from None
+    expected = [p.get("name") for p in record.info.get("reference_points", [])] if strict_points else None
+    result = await ctx.pool.run(
+        markers_signature, text, fmt, method, expected, hand, what="computing the signature from markers",
+        field="file",
+    )  # fmt: skip
+    params = {
+        "method": method,
+        "file": name,
+        "sha256": hashlib.sha256(raw).hexdigest(),
+        "strict_points": strict_points,
+        "closure": result["closure"],
+    }
+    rec = await run_in_threadpool(
+        lambda: repo.add_signature(
+            ctx.registry, hand, kind="closure", method=method, source="markers", data=result["signature"],
+            params=params, hand_revision=record.revision, if_match=if_match,
+        )
+    )  # fmt: skip
+    return _created(response, rec)
+
+
+@router.get(
+    "/hands/{hand}/signatures",
+    response_model=SignatureList,
+    dependencies=[ReadAccess],
+    responses=READ,
+    summary="List a hand's signature versions",
+)
+def list_signatures(ctx: Ctx, hand: HandPath, kind: KindQuery = None, limit: Limit = 100,
+                    offset: Offset = 0) -> dict[str, Any]:  # fmt: skip
+    """Versions, newest first (without the signature bodies)."""
+    items, total = repo.list_signatures(ctx.registry, hand, kind=kind, limit=limit, offset=offset)
+    return {"items": [signature_summary(r) for r in items], "total": total, "limit": limit, "offset": offset}
+
+
+@router.get(
+    "/hands/{hand}/signatures/latest",
+    response_model=SignatureOut,
+    dependencies=[ReadAccess],
+    responses=READ,
+    summary="Get the latest signature version (of a kind)",
+)
+def latest_signature(ctx: Ctx, hand: HandPath, response: Response, kind: KindQuery = None) -> dict[str, Any]:
+    """The newest version, of ``kind`` if given; 404 when there is none."""
+    rec = repo.latest_signature(ctx.registry, hand, kind=kind)
+    response.headers["ETag"] = rec.etag
+    return signature_out(rec)
+
+
+@router.get(
+    "/hands/{hand}/signatures/{version}",
+    response_model=SignatureOut,
+    dependencies=[ReadAccess],
+    responses=READ,
+    summary="Get one signature version",
+)
+def get_signature(
+    ctx: Ctx, hand: HandPath, version: Annotated[int, Path(ge=1, le=2**31 - 1)], response: Response
+) -> dict[str, Any]:
+    """One stored version (never changes once stored)."""
+    rec = repo.get_signature(ctx.registry, hand, version)
+    response.headers["ETag"] = rec.etag
+    return signature_out(rec)

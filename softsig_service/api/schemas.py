@@ -1,0 +1,457 @@
+"""Request and response bodies of the REST API (pydantic; the boundary only, no behaviour).
+
+Request bodies are strict: unknown fields, NaN and infinities are rejected (``extra="forbid"``,
+``allow_inf_nan=False``) with a 422 problem naming the field. Response bodies allow extra keys, so that a field
+added to a result type reaches clients without a schema change.
+
+Units and frames (DESIGN §3): SI units (m, rad, s, kg, N); the world frame is the UR5 ``base_link`` (z up); poses
+are ``{"frame_id", "position": {x, y, z}, "orientation": {x, y, z, w}}`` (geometry_msgs order); signatures are in
+the hand frame (origin at the flange, +z the approach, +x across the palm).
+
+This module imports nothing heavy (no MuJoCo, no NumPy at import), so the client can use it.
+"""
+
+from __future__ import annotations
+
+import math
+from datetime import datetime
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+HAND_NAME_PATTERN = r"^[a-z][a-z0-9_\-]{0,63}$"
+"""Names of hands (the hand manifest's ``name`` rule)."""
+
+HandName = Annotated[str, Field(pattern=HAND_NAME_PATTERN, description="a registered hand's name")]
+Length = Annotated[float, Field(gt=0.0, le=5.0, description="[m]")]
+Coordinate = Annotated[float, Field(ge=-10.0, le=10.0, description="[m]")]
+Angle = Annotated[float, Field(ge=-100.0, le=100.0, description="[rad]")]
+JointAngle = Annotated[float, Field(ge=-7.0, le=7.0, description="[rad]")]
+
+
+class Strict(BaseModel):
+    """Base of request bodies: unknown fields, NaN and infinities are errors."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class Out(BaseModel):
+    """Base of response bodies: extra keys pass through."""
+
+    model_config = ConfigDict(extra="allow")
+
+
+# ----------------------------------------------------------------------------------------------------------
+# objects (the JSON of softsig_service.planning.objects.object_from_json)
+# ----------------------------------------------------------------------------------------------------------
+
+
+class ObjectPose(Strict):
+    """Placement of an object on the table: centre (x, y) [m] in ``base_link``, ``yaw`` [rad] about world z, and
+    optionally the centre height ``z`` [m] (default: resting on the table)."""
+
+    x: Coordinate = 0.5
+    y: Coordinate = 0.0
+    yaw: Angle = 0.0
+    z: Coordinate | None = None
+
+
+class _ObjectBase(Strict):
+    mass: float = Field(gt=0.0, le=1000.0, description="[kg]")
+    friction: float = Field(1.0, gt=0.0, le=10.0, description="sliding friction coefficient")
+    name: str = Field("", max_length=64)
+    pose: ObjectPose = Field(default_factory=ObjectPose)
+
+
+class BoxSpec(_ObjectBase):
+    """A box of full side lengths ``size`` (x, y, z) [m] in the object frame."""
+
+    kind: Literal["box"]
+    size: tuple[Length, Length, Length]
+
+
+class CylinderSpec(_ObjectBase):
+    """A cylinder; lying (axis = object x, default) or standing (axis = object z)."""
+
+    kind: Literal["cylinder"]
+    radius: Length
+    length: Length
+    orientation: Literal["lying", "standing"] = "lying"
+
+
+class SphereSpec(_ObjectBase):
+    """A sphere of ``radius`` [m]."""
+
+    kind: Literal["sphere"]
+    radius: Length
+
+
+class EllipsoidSpec(_ObjectBase):
+    """An ellipsoid of semi-axes ``radii`` (x, y, z) [m]."""
+
+    kind: Literal["ellipsoid"]
+    radii: tuple[Length, Length, Length]
+
+
+class MeshSpec(_ObjectBase):
+    """A triangle mesh: ``vertices`` [m] in the object frame and ``faces`` (0-based vertex indices)."""
+
+    kind: Literal["mesh"]
+    vertices: list[tuple[Coordinate, Coordinate, Coordinate]] = Field(min_length=4, max_length=100_000)
+    faces: list[tuple[Annotated[int, Field(ge=0)], Annotated[int, Field(ge=0)], Annotated[int, Field(ge=0)]]] = Field(
+        min_length=1, max_length=200_000
+    )
+
+
+class BuiltinObjectSpec(Strict):
+    """One of the objects of DESIGN §7 (box, apple, cylinder), optionally with another mass, friction or pose."""
+
+    kind: Literal["builtin"]
+    name: Literal["box", "apple", "cylinder"]
+    mass: float | None = Field(None, gt=0.0, le=1000.0, description="[kg]")
+    friction: float | None = Field(None, gt=0.0, le=10.0)
+    pose: ObjectPose | None = None
+
+
+ObjectSpec = Annotated[
+    BoxSpec | CylinderSpec | SphereSpec | EllipsoidSpec | MeshSpec | BuiltinObjectSpec,
+    Field(discriminator="kind"),
+]
+UNION_TAGS: frozenset[str] = frozenset(
+    {"box", "cylinder", "sphere", "ellipsoid", "mesh", "builtin", "closure", "stiffness"}
+)
+"""Discriminator values: pydantic puts them in error locations; problems.py leaves them out of field paths."""
+
+
+def object_json(spec: BaseModel) -> dict[str, Any]:
+    """The object JSON of an :data:`ObjectSpec` (unset optional keys left out)."""
+    return spec.model_dump(exclude_none=True)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# common wire types
+# ----------------------------------------------------------------------------------------------------------
+
+
+class Vector3(Out):
+    """A position [m]."""
+
+    x: float
+    y: float
+    z: float
+
+
+class Quaternion(Out):
+    """A unit quaternion, named fields (geometry_msgs order)."""
+
+    x: float
+    y: float
+    z: float
+    w: float
+
+
+class PoseOut(Out):
+    """A pose of the UR5 flange ``tool0`` (= the hand frame) in ``frame_id``."""
+
+    frame_id: str
+    position: Vector3
+    orientation: Quaternion
+
+
+class Problem(Out):
+    """RFC 9457 problem details (``application/problem+json``), with the offending ``field`` named."""
+
+    type: str = Field(description="URI of the problem type (urn:softsig:problem:<slug>)")
+    title: str
+    status: int
+    detail: str | None = None
+    instance: str | None = Field(None, description="the request path")
+    field: str | None = Field(None, description="dotted path of the offending field (e.g. object.size[2])")
+    value: Any = Field(None, description="the offending value (shortened)")
+    choices: list[str] | None = Field(None, description="the valid values, where they are a closed set")
+    errors: list[dict[str, Any]] | None = Field(None, description="every validation error: field, message, type")
+    request_id: str | None = None
+
+
+# ----------------------------------------------------------------------------------------------------------
+# hands
+# ----------------------------------------------------------------------------------------------------------
+
+
+class HandFile(Out):
+    """A file of an uploaded hand: path relative to its folder, size [bytes], SHA-256."""
+
+    path: str
+    size: int
+    sha256: str
+
+
+class HandSummary(Out):
+    """A registered hand."""
+
+    name: str
+    builtin: bool
+    revision: int
+    etag: str
+    kind: str | None = None
+    description: str = ""
+    model_format: str | None = None
+    reference_points: list[str] = Field(default_factory=list)
+    signature_count: int = 0
+    created_at: datetime
+    updated_at: datetime
+    links: dict[str, str] = Field(default_factory=dict)
+
+
+class HandOut(HandSummary):
+    """A registered hand with its model summary (``info``: joints, actuators, mass [kg], reference points...)."""
+
+    info: dict[str, Any]
+    files: list[HandFile] = Field(default_factory=list)
+
+
+class HandList(Out):
+    """Every registered hand."""
+
+    items: list[HandSummary]
+
+
+# ----------------------------------------------------------------------------------------------------------
+# signatures
+# ----------------------------------------------------------------------------------------------------------
+
+
+class ClosureSignatureIn(Strict):
+    """Compute the closure signature from a simulated free closure of the hand (DESIGN §4)."""
+
+    kind: Literal["closure"]
+    method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid"
+
+
+class StiffnessSignatureIn(Strict):
+    """Compute the stiffness signature: grasp ``object`` in MuJoCo, 6x6 stiffness and break forces (DESIGN §5)."""
+
+    kind: Literal["stiffness"]
+    object: ObjectSpec
+
+
+SignatureIn = Annotated[ClosureSignatureIn | StiffnessSignatureIn, Field(discriminator="kind")]
+
+
+class SignatureSummary(Out):
+    """One stored signature version."""
+
+    hand: str
+    version: int
+    kind: Literal["closure", "stiffness"] | str
+    method: str
+    source: Literal["simulation", "markers"] | str
+    hand_revision: int
+    etag: str
+    created_at: datetime
+    links: dict[str, str] = Field(default_factory=dict)
+
+
+class SignatureOut(SignatureSummary):
+    """A stored signature version with its parameters and the signature JSON (as ``softsig signature ... --json``)."""
+
+    params: dict[str, Any]
+    signature: dict[str, Any]
+
+
+class SignatureList(Out):
+    """Signature versions, newest first."""
+
+    items: list[SignatureSummary]
+    total: int
+    limit: int
+    offset: int
+
+
+# ----------------------------------------------------------------------------------------------------------
+# plans
+# ----------------------------------------------------------------------------------------------------------
+
+
+class PlanIn(Strict):
+    """A top-grasp request (DESIGN §6): hand, object on the table, strategy S (bounding box) or C (closure
+    signature), the UR5's current joints ``current_q`` [rad] (default: home)."""
+
+    hand: HandName
+    object: ObjectSpec
+    strategy: Literal["S", "C"]
+    current_q: tuple[JointAngle, JointAngle, JointAngle, JointAngle, JointAngle, JointAngle] | None = None
+    closing_axis: Literal["minor", "major"] = Field("minor", description="object axis the CS closes across (C)")
+    approach_distance: float = Field(0.10, ge=0.0, le=0.5, description="pre-grasp distance along the approach [m]")
+    margin: float = Field(0.005, ge=0.0, le=0.05, description="clearance kept from table and object [m]")
+    cs_method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid"
+    store: bool = Field(True, description="store the plan (GET /v1/plans/{id}, image.png); false: id is null")
+
+
+class Approach(Out):
+    """Straight approach: unit ``direction`` in ``frame_id``, distances [m] (moveit_msgs/GripperTranslation)."""
+
+    direction: list[float]
+    frame_id: str = "base_link"
+    desired_distance: float
+    min_distance: float
+
+
+class Quality(Out):
+    """Quality terms: ``alignment_error`` [rad], ``ik_residual`` [m], ``clearance`` [m]."""
+
+    alignment_error: float | None = None
+    ik_residual: float | None = None
+    clearance: float | None = None
+
+
+class PlanOut(Out):
+    """A grasp plan; maps one to one onto moveit_msgs/Grasp (docs/planning.md). ``grasp_pose`` and
+    ``pre_grasp_pose`` are poses of the flange ``tool0`` in ``base_link``; joints [rad]; timing [s]."""
+
+    id: str | None = None
+    created_at: datetime | None = None
+    success: bool
+    reasons: list[str]
+    strategy: str
+    hand: str
+    object: dict[str, Any]
+    joint_names: list[str]
+    joint_positions: list[float] | None = None
+    pre_grasp_joint_positions: list[float] | None = None
+    grasp_pose: PoseOut | None = None
+    pre_grasp_pose: PoseOut | None = None
+    approach: Approach
+    quality: Quality
+    timing: dict[str, float]
+    closure: dict[str, Any] = Field(default_factory=dict)
+    solver: dict[str, Any] = Field(default_factory=dict)
+    links: dict[str, str] = Field(default_factory=dict)
+
+
+class PlanSummary(Out):
+    """A stored plan, briefly."""
+
+    id: str
+    hand: str
+    strategy: str
+    success: bool
+    created_at: datetime
+    links: dict[str, str] = Field(default_factory=dict)
+
+
+class PlanList(Out):
+    """Stored plans, newest first."""
+
+    items: list[PlanSummary]
+    total: int
+    limit: int
+    offset: int
+
+
+# ----------------------------------------------------------------------------------------------------------
+# jobs: validations and experiments
+# ----------------------------------------------------------------------------------------------------------
+
+
+class ValidationIn(Strict):
+    """Validate a plan in MuJoCo (DESIGN §7): plan the grasp of ``object`` with ``strategy``, then run ``trials``
+    rollouts with the simulated object perturbed by yaw ~ N(0, sigma_r^2) [rad] and x, y ~ N(0, sigma_t^2) [m]."""
+
+    hand: HandName = "pisa_iit_softhand"
+    object: ObjectSpec
+    strategy: Literal["S", "C"]
+    sigma_r: float = Field(0.0, ge=0.0, le=3.2, description="[rad]")
+    sigma_t: float = Field(0.0, ge=0.0, le=0.5, description="[m]")
+    trials: int = Field(1, ge=1, le=100_000)
+    seed: int = Field(0, ge=0, le=2**32 - 1)
+    time_limit: float | None = Field(None, gt=0.0, description="wall-time cap [s] (at most the service's cap)")
+
+
+class ExperimentIn(Strict):
+    """Run the reference experiment (DESIGN §7, the paper's Table I): conditions x objects x strategies x
+    ``trials`` per cell."""
+
+    name: Literal["table1"] = "table1"
+    hand: HandName = "pisa_iit_softhand"
+    trials: int = Field(20, ge=1, le=100_000, description="trials per cell")
+    seed: int = Field(0, ge=0, le=2**32 - 1)
+    workers: int | None = Field(None, ge=1, le=64, description="worker processes (default: the job's own choice)")
+    time_limit: float | None = Field(None, gt=0.0, description="wall-time cap [s] (at most the service's cap)")
+
+
+class JobOut(Out):
+    """A job: ``status`` queued | running | succeeded | failed | cancelled | timed_out, ``progress`` in [0, 1]."""
+
+    id: str
+    kind: str
+    status: str
+    progress: float
+    message: str = ""
+    params: dict[str, Any]
+    result: dict[str, Any] | None = None
+    error: dict[str, Any] | None = None
+    time_limit: float = Field(description="wall-time cap [s]")
+    cancel_requested: bool = False
+    created_at: datetime
+    started_at: datetime | None = None
+    finished_at: datetime | None = None
+    links: dict[str, str] = Field(default_factory=dict)
+
+
+class JobList(Out):
+    """Jobs, newest first."""
+
+    items: list[JobOut]
+    total: int
+    limit: int
+    offset: int
+
+
+class JobFile(Out):
+    """A result file of a job: name, size [bytes], media type and download URL."""
+
+    name: str
+    size: int
+    media_type: str
+    url: str
+
+
+class JobFiles(Out):
+    """The result files of a job."""
+
+    items: list[JobFile]
+
+
+# ----------------------------------------------------------------------------------------------------------
+# operations
+# ----------------------------------------------------------------------------------------------------------
+
+
+class Health(Out):
+    """Liveness."""
+
+    status: Literal["ok"]
+
+
+class Readiness(Out):
+    """Readiness: every check ``ok`` or the reason it is not."""
+
+    status: Literal["ready", "not_ready"]
+    checks: dict[str, str]
+
+
+def to_jsonable(value: Any) -> Any:
+    """``value`` with NumPy scalars and arrays made plain and non-finite floats made ``None`` (valid JSON)."""
+    if isinstance(value, dict):
+        return {str(k): to_jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [to_jsonable(v) for v in value]
+    if isinstance(value, bool) or value is None or isinstance(value, str | int):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    tolist = getattr(value, "tolist", None)  # NumPy arrays and scalars
+    if callable(tolist):
+        return to_jsonable(tolist())
+    return str(value)

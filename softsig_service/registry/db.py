@@ -1,0 +1,111 @@
+"""The registry's database: an engine, read and write sessions, and SQLite's settings.
+
+A SQLite file by default (``Settings.resolved_database_url()``: ``<data_dir>/registry.sqlite3``), PostgreSQL when
+``SOFTSIG_DATABASE_URL`` names one (``postgresql+psycopg://...``; the driver is an optional extra).
+
+SQLite is set up on every new connection (connection events, not a one-off script):
+
+* ``journal_mode=WAL`` — readers never block the writer and the writer never blocks readers;
+* ``foreign_keys=ON`` — deleting a hand deletes its signatures;
+* ``busy_timeout`` — a writer waits up to ``busy_timeout`` [s] for another writer instead of failing at once;
+* ``synchronous=NORMAL`` — durable across a crash of the process (WAL), one fsync per checkpoint.
+
+Transactions are started by SQLAlchemy, not by the driver (pysqlite's implicit ``BEGIN`` is switched off, as the
+SQLAlchemy docs recommend): reads start a deferred ``BEGIN``; write sessions (:meth:`Registry.write`) start
+``BEGIN IMMEDIATE``, taking SQLite's write lock up front so that two writers queue on the busy timeout rather than
+deadlock on a lock upgrade. On PostgreSQL both are plain transactions; signature versions are allocated with a
+row-locking ``UPDATE ... RETURNING`` there as here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy import Engine, create_engine, event, text
+from sqlalchemy.engine import make_url
+from sqlalchemy.orm import Session, sessionmaker
+
+from softsig_service.registry.models import Base
+
+_WRITE_OPTION = "softsig_write"
+
+
+def _is_sqlite(url: str) -> bool:
+    return make_url(url).get_backend_name() == "sqlite"
+
+
+def make_engine(url: str, *, busy_timeout: float = 10.0) -> Engine:
+    """An engine for ``url``; a SQLite file's folder is created and its connections are configured (see above)."""
+    if not _is_sqlite(url):
+        return create_engine(url, pool_pre_ping=True)
+    u = make_url(url)
+    if u.database and u.database != ":memory:":
+        Path(u.database).expanduser().parent.mkdir(parents=True, exist_ok=True)
+    engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": busy_timeout})
+    timeout_ms = int(busy_timeout * 1000)
+
+    @event.listens_for(engine, "connect")
+    def _on_connect(dbapi_connection: Any, _record: Any) -> None:
+        dbapi_connection.isolation_level = None  # SQLAlchemy emits BEGIN itself (below)
+        cur = dbapi_connection.cursor()
+        cur.execute("PRAGMA journal_mode=WAL")
+        cur.execute("PRAGMA foreign_keys=ON")
+        cur.execute(f"PRAGMA busy_timeout={timeout_ms}")
+        cur.execute("PRAGMA synchronous=NORMAL")
+        cur.close()
+
+    @event.listens_for(engine, "begin")
+    def _on_begin(conn: Any) -> None:
+        immediate = conn.get_execution_options().get(_WRITE_OPTION, False)
+        conn.exec_driver_sql("BEGIN IMMEDIATE" if immediate else "BEGIN")
+
+    return engine
+
+
+class Registry:
+    """The database of one service: engine, session factories and schema creation.
+
+    ``read()`` gives a session for queries; ``write()`` a session in a write transaction that commits on success
+    and rolls back on an exception.
+    """
+
+    def __init__(self, url: str, *, busy_timeout: float = 10.0, create: bool = True) -> None:
+        self.url = url
+        self.engine = make_engine(url, busy_timeout=busy_timeout)
+        self.is_sqlite = _is_sqlite(url)
+        self._read = sessionmaker(self.engine, expire_on_commit=False)
+        self._write = sessionmaker(self.engine.execution_options(**{_WRITE_OPTION: True}), expire_on_commit=False)
+        if create:
+            self.create_schema()
+
+    def create_schema(self) -> None:
+        """Create missing tables (idempotent)."""
+        Base.metadata.create_all(self.engine)
+
+    @contextmanager
+    def read(self) -> Iterator[Session]:
+        """A session for reads (its transaction is rolled back at the end)."""
+        with self._read() as session:
+            yield session
+
+    @contextmanager
+    def write(self) -> Iterator[Session]:
+        """A session in a write transaction: committed when the block ends, rolled back on an exception."""
+        with self._write() as session, session.begin():
+            yield session
+
+    def ping(self) -> bool:
+        """Whether the database answers a trivial query."""
+        try:
+            with self.engine.connect() as conn:
+                conn.execute(text("SELECT 1"))
+            return True
+        except Exception:
+            return False
+
+    def dispose(self) -> None:
+        """Close every pooled connection."""
+        self.engine.dispose()

@@ -1,0 +1,273 @@
+"""Command-line functions of the validation (typer): ``softsig validate`` and ``softsig experiment table1``.
+
+Register them in ``softsig_service/cli.py``::
+
+    from softsig_service.simulation.commands import experiment_app, validate
+
+    app.command("validate")(validate)
+    app.add_typer(experiment_app, name="experiment")
+
+Errors: a :class:`~softsig_service.errors.SoftsigError` is printed as one line on stderr and exits with status 2
+(as the rest of the CLI does); an interrupted campaign exits with 130 after saying how to resume.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from softsig_service.errors import InvalidInput, RenderUnavailable, SoftsigError
+
+FRAME_SIZE = (640, 480)
+"""Width and height [px] of recorded frames."""
+
+
+@contextmanager
+def _errors() -> Iterator[None]:
+    """Print a :class:`SoftsigError` as one clear line on stderr and exit with status 2 (as ``cli._errors``)."""
+    try:
+        yield
+    except SoftsigError as exc:
+        typer.echo(f"error: {exc.describe()}", err=True)
+        raise typer.Exit(2) from None
+
+
+def parse_object(spec: str, x: float, y: float, yaw: float) -> Any:
+    """``box | apple | cylinder`` (DESIGN §7) or a path to an object JSON (``object_from_json``), placed at
+    ``(x [m], y [m], yaw [rad])`` on the table. Returns a :class:`~softsig_service.planning.objects.TableObject`."""
+    from softsig_service.planning.objects import BUILTIN_NAMES, builtin_object, object_from_json
+
+    if spec in BUILTIN_NAMES:
+        return builtin_object(spec, x=x, y=y, yaw=yaw)
+    path = Path(spec)
+    if path.suffix != ".json" or not path.is_file():
+        raise InvalidInput(
+            "object must be a built-in name or a JSON file",
+            field="object",
+            value=spec,
+            choices=[*BUILTIN_NAMES, "PATH.json"],
+        )
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InvalidInput(f"object file is not valid JSON: {exc}", field="object", value=spec) from None
+    if isinstance(data, dict):
+        data = {**data, "pose": {**data.get("pose", {}), "x": x, "y": y, "yaw": yaw}}
+    return object_from_json(data)
+
+
+class _Recorder:
+    """Renders the scene offscreen (``mujoco.Renderer``) into PNG frames and/or a video writer."""
+
+    def __init__(self, frames: Path | None, video: Path | None, fps: float) -> None:
+        self.frames_dir = frames
+        self.video = video
+        self.writer: Any = None
+        self.renderer: Any = None
+        self.count = 0
+        self.trial = 0
+        self._model: Any = None
+        if video is not None:
+            try:
+                import imageio.v2 as imageio
+                import imageio_ffmpeg  # noqa: F401  (the encoder imageio needs for .mp4)
+            except ImportError:
+                raise InvalidInput(
+                    "--video needs a video encoder: pip install imageio imageio-ffmpeg; or use --frames DIR to "
+                    "write PNG frames",
+                    field="video",
+                    value=str(video),
+                ) from None
+            video.parent.mkdir(parents=True, exist_ok=True)
+            self.writer = imageio.get_writer(str(video), fps=fps, macro_block_size=8)
+        from softsig_service.gl_backend import render_unavailable_reason
+
+        reason = render_unavailable_reason()
+        if reason is not None:
+            raise RenderUnavailable(
+                "offscreen rendering needs an OpenGL backend (MUJOCO_GL=egl with libegl1, or osmesa): " + reason,
+                field="MUJOCO_GL",
+            )
+
+    def __call__(self, scene: Any, data: Any) -> None:
+        import mujoco
+
+        if self.renderer is None or self._model is not scene.model:
+            w, h = FRAME_SIZE
+            scene.model.vis.global_.offwidth = max(int(scene.model.vis.global_.offwidth), w)
+            scene.model.vis.global_.offheight = max(int(scene.model.vis.global_.offheight), h)
+            try:
+                self.renderer = mujoco.Renderer(scene.model, height=h, width=w)
+            except Exception as exc:  # MuJoCo raises plain RuntimeError kinds for GL failures
+                raise RenderUnavailable(f"cannot create an offscreen renderer: {exc}", field="MUJOCO_GL") from None
+            self._model = scene.model
+        self.renderer.update_scene(data, camera="overview")
+        image = self.renderer.render()
+        if self.frames_dir is not None:
+            from PIL import Image  # Pillow comes with matplotlib
+
+            folder = self.frames_dir / f"trial_{self.trial:03d}"
+            folder.mkdir(parents=True, exist_ok=True)
+            Image.fromarray(image).save(folder / f"frame_{self.count:05d}.png", compress_level=1)
+        if self.writer is not None:
+            self.writer.append_data(image)
+        self.count += 1
+
+    def next_trial(self) -> None:
+        self.trial += 1
+        self.count = 0
+
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.close()
+        if self.renderer is not None:
+            self.renderer.close()
+
+
+def validate(
+    hand: Annotated[str, typer.Option("--hand", help="built-in name or path to hand.toml")],
+    obj: Annotated[str, typer.Option("--object", help="box | apple | cylinder | PATH.json")],
+    x: Annotated[float, typer.Option("--x", help="nominal object centre x in base_link [m]")] = 0.5,
+    y: Annotated[float, typer.Option("--y", help="nominal object centre y in base_link [m]")] = 0.0,
+    yaw: Annotated[float, typer.Option("--yaw", help="nominal object yaw about world z [rad]")] = 0.0,
+    strategy: Annotated[str, typer.Option("--strategy", help="S (bounding box) | C (closure signature)")] = "C",
+    sigma_r: Annotated[float, typer.Option("--sigma-r", help="std. dev. of the object's yaw offset [rad]")] = 0.0,
+    sigma_t: Annotated[float, typer.Option("--sigma-t", help="std. dev. of its x and y offsets [m]")] = 0.0,
+    trials: Annotated[int, typer.Option("--trials", help="number of trials", min=1, max=100_000)] = 1,
+    seed: Annotated[int, typer.Option("--seed", help="seed; trial k uses SeedSequence(seed, spawn_key=(k,))")] = 0,
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    video: Annotated[Path | None, typer.Option("--video", help="write an MP4 of the trials (needs imageio)")] = None,
+    frames: Annotated[Path | None, typer.Option("--frames", help="write PNG frames into DIR/trial_NNN/")] = None,
+    fps: Annotated[float, typer.Option("--fps", help="frames per second of sim time", min=1.0, max=500.0)] = 30.0,
+) -> None:
+    """Plan a top grasp on the nominal object pose and simulate it in MuJoCo, under pose noise if asked."""
+    with _errors():
+        from softsig_service.planning.strategies import STRATEGIES
+        from softsig_service.simulation.campaign import trial_seed
+        from softsig_service.simulation.rollout import run_trial
+
+        if strategy not in STRATEGIES:
+            raise InvalidInput("unknown strategy", field="strategy", value=strategy, choices=STRATEGIES)
+        nominal = parse_object(obj, x, y, yaw)
+        recorder = _Recorder(frames, video, fps) if (frames is not None or video is not None) else None
+        results = []
+        try:
+            for k in range(trials):
+                result = run_trial(
+                    hand,
+                    nominal,
+                    strategy,  # type: ignore[arg-type]
+                    seed=trial_seed(seed, (), k),
+                    sigma_r=sigma_r,
+                    sigma_t=sigma_t,
+                    on_frame=recorder,
+                    frame_period=1.0 / fps,
+                )
+                results.append(result)
+                if recorder is not None:
+                    recorder.next_trial()
+        finally:
+            if recorder is not None:
+                recorder.close()
+        successes = sum(r.success for r in results)
+        data: dict[str, Any] = {
+            "hand": results[0].hand,
+            "object": nominal.to_json(),
+            "strategy": strategy,
+            "sigma_r": sigma_r,
+            "sigma_t": sigma_t,
+            "seed": seed,
+            "trials": trials,
+            "successes": successes,
+            "outcomes": [
+                {"seed": r.seed, "success": r.success, "reason": r.reason, "lift_height": r.lift_height}
+                for r in results
+            ],
+            "details": [r.to_json_dict() for r in results],
+        }
+        if video is not None:
+            data["video"] = str(video)
+        if frames is not None:
+            data["frames"] = str(frames)
+        if as_json:
+            typer.echo(json.dumps(data, indent=2))
+            return
+        lines = [
+            f"{data['hand']} / {nominal.name or nominal.kind} / strategy {strategy} / sigma_r {sigma_r:g} rad, "
+            f"sigma_t {sigma_t:g} m: {successes}/{trials} successes"
+        ]
+        for r in results:
+            verdict = "success" if r.success else f"FAILED: {r.reason}"
+            p = r.perturbation
+            lines.append(
+                f"  seed {r.seed:>10d}  {verdict:28s} lift {r.lift_height * 1000:6.1f} mm  offset yaw "
+                f"{p.d_yaw:+.3f} rad, x {p.dx * 1000:+.1f} mm, y {p.dy * 1000:+.1f} mm  ({r.wall_time:.2f} s)"
+            )
+        if video is not None:
+            lines.append(f"  wrote {video}")
+        if frames is not None:
+            lines.append(f"  wrote frames into {frames}")
+        typer.echo("\n".join(lines))
+
+
+experiment_app = typer.Typer(help="Reference experiments (the paper's Table I).", no_args_is_help=True)
+
+
+@experiment_app.command("table1")
+def table1(
+    out: Annotated[Path, typer.Option("--out", help="output folder (re-run with the same folder to resume)")],
+    trials: Annotated[int, typer.Option("--trials", help="trials per cell", min=1, max=10_000)] = 20,
+    seed: Annotated[int, typer.Option("--seed", help="campaign seed", min=0)] = 0,
+    hand: Annotated[str, typer.Option("--hand", help="built-in name or path to hand.toml")] = "pisa_iit_softhand",
+    workers: Annotated[
+        int | None, typer.Option("--workers", help="worker processes / Ray CPUs (default: all cores)", min=1)
+    ] = None,
+    backend: Annotated[str, typer.Option("--backend", help="local | ray")] = "local",
+    address: Annotated[str | None, typer.Option("--address", help="Ray cluster address (default: local)")] = None,
+    progress: Annotated[bool, typer.Option("--progress/--no-progress", help="progress bar on stderr")] = True,
+    as_json: Annotated[bool, typer.Option("--json", help="print the summary as JSON")] = False,
+) -> None:
+    """Run the paper's Table I in simulation: 3 uncertainty levels x box, apple, cylinder x S, C."""
+    with _errors():
+        from softsig_service.simulation.campaign import BACKENDS, CampaignSpec, read_records, run_campaign
+
+        if backend not in BACKENDS:
+            raise InvalidInput("unknown backend", field="backend", value=backend, choices=BACKENDS)
+        spec = CampaignSpec(hand=hand, trials=trials, seed=seed)
+        try:
+            result = run_campaign(
+                spec,
+                out,
+                workers=workers,
+                backend=backend,  # type: ignore[arg-type]
+                address=address,
+                progress=progress,
+            )
+        except KeyboardInterrupt:
+            n = len(read_records(out / "trials.jsonl"))
+            typer.echo(f"interrupted: {n} trials saved in {out}; run the same command again to resume", err=True)
+            raise typer.Exit(130) from None
+        if as_json:
+            typer.echo(
+                json.dumps(
+                    {
+                        "files": result.files,
+                        "ran": result.ran,
+                        "skipped": result.skipped,
+                        "wall_time": result.wall_time,
+                        "summary": result.summary,
+                    },
+                    indent=2,
+                )
+            )
+            return
+        typer.echo(Path(result.files["report"]).read_text(encoding="utf-8"))
+        typer.echo(
+            f"ran {result.ran} trials, skipped {result.skipped} already done, {result.wall_time:.1f} s; "
+            f"wrote {', '.join(result.files.values())}"
+        )

@@ -1,0 +1,482 @@
+"""One validation trial in MuJoCo: plan on the nominal pose, perturb the object, approach, close, lift, hold, judge.
+
+The sequence (DESIGN §7), all in the world frame (UR5 ``base_link``, z up), SI units:
+
+1. **Plan** with :class:`~softsig_service.planning.planner.Planner` on the *nominal* object pose. A plan that
+   fails ends the trial with the plan's first reason (``unreachable``, ``collision:table``, ...).
+2. **Perturb** the simulated object: yaw about its vertical axis by ``d_yaw ~ N(0, sigma_r^2)`` [rad] and
+   shift in x, y by ``(dx, dy) ~ N(0, sigma_t^2)`` [m] each, drawn from ``numpy.random.default_rng(seed)`` in
+   the order ``d_yaw, dx, dy`` (always drawn, also for sigma = 0). The object rests on the table.
+3. **Pre-grasp**: the arm starts at the plan's pre-grasp joint positions (servo targets there too), the hand
+   open (posture closures: the open posture), at rest.
+4. **Approach**: joint targets from IK at :attr:`RolloutConfig.waypoints` points of the straight Cartesian line
+   from the pre-grasp to the grasp flange pose (each IK seeded by the previous solution), interpolated
+   linearly in joint space along a quintic time scaling over :attr:`RolloutConfig.approach_time` [s]. The
+   joint servos (no velocity feed-forward) lag up to about 1.5 cm along the path at peak speed and stay within
+   about 1 mm of the line (3 mm during the lift); they settle within 1 mm of the target at the end.
+5. **Close**: the hand's closure command ramps linearly from open to closed over the manifest's
+   ``closure.duration`` [s] and is held ``closure.settle`` [s] (exactly as the free-space closure that the CS
+   is computed from, :func:`softsig_service.hands.closure.closure_command`); the arm holds the grasp.
+6. **Lift**: the flange rises :attr:`RolloutConfig.lift` [m] (0.15) along world +z, IK along the line, over
+   :attr:`RolloutConfig.lift_time` [s]; the closure command stays closed.
+7. **Hold** for :attr:`RolloutConfig.hold_time` [s] (1 s).
+
+**Judge** (DESIGN §7): success iff the object's centre rose by at least ``success_fraction * lift``
+(80 % of 0.15 m = 0.12 m) between the start of the trial and its end AND the object touches the hand at the
+end (a MuJoCo contact, distance <= 0, between an object geom and a hand geom), and the trial was not stopped
+before: a failed plan, a diverged simulation or an arm collision (the issue's reasons) fail it whatever the
+object did. A failed trial says why, checked in this order:
+
+* the plan's first reason (``unreachable``, ``unreachable:approach``, ``collision:table``,
+  ``alignment_impossible``...), or ``unreachable:approach`` / ``unreachable:lift`` if the IK along the approach
+  or the lift line fails here (the planner does not check the lift);
+* ``sim_unstable``: the simulation diverged (non-finite state or a MuJoCo warning);
+* ``arm_collision``: an arm link (not the hand) touched the table at any control tick, or the object before
+  the lift (during the approach or the closure). Once the object is in the hand, its contacts with the arm's
+  wrist (held against the flange, or falling past it) are not arm collisions;
+* ``not_lifted``: the object touches the hand at the end but rose less than the threshold (it slid in the
+  hand, hangs low, or stays on the table);
+* ``dropped``: the object touched the hand at the end of the closure but not at the end of the trial;
+* ``no_contact``: the object touched the hand neither at the end of the closure nor at the end.
+
+A trial is deterministic for a seed: same seed, same perturbation, same plan, same simulation, same outcome
+(MuJoCo is deterministic on one machine and build).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from softsig_service.arm.ur5 import UR5
+from softsig_service.config import Settings
+from softsig_service.errors import InvalidInput
+from softsig_service.hands.closure import closure_command
+from softsig_service.planning.objects import TableObject
+from softsig_service.planning.planner import GraspPlan, Planner, PlanRequest
+from softsig_service.simulation.scene import Scene, build_scene
+
+FloatArray = NDArray[np.float64]
+_BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
+
+REASONS: tuple[str, ...] = (
+    "unreachable:approach",
+    "unreachable:lift",
+    "sim_unstable",
+    "arm_collision",
+    "not_lifted",
+    "dropped",
+    "no_contact",
+)
+"""Failure reasons of the simulation (a failed plan gives the planner's own reasons instead)."""
+
+
+@dataclass(frozen=True)
+class RolloutConfig:
+    """Timing and thresholds of a trial (SI units).
+
+    Attributes:
+        lift: [m] height the flange rises after closing (DESIGN §7: 0.15).
+        success_fraction: the object must rise by at least this fraction of ``lift`` (DESIGN §7: 0.8).
+        approach_time: [s] duration of the straight approach from the pre-grasp to the grasp.
+        lift_time: [s] duration of the lift.
+        hold_time: [s] duration of the hold at the top (DESIGN §7: 1 s).
+        control_period: [s] period of the controller (servo targets updated, contacts checked); a multiple
+            of the scene's time step (rounded to one).
+        waypoints: number of IK waypoints along each Cartesian line (approach, lift), ends included.
+    """
+
+    lift: float = 0.15
+    success_fraction: float = 0.8
+    approach_time: float = 1.0
+    lift_time: float = 1.0
+    hold_time: float = 1.0
+    control_period: float = 0.01
+    waypoints: int = 11
+
+    def __post_init__(self) -> None:
+        for name in ("lift", "approach_time", "lift_time", "control_period"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise InvalidInput("must be a positive number", field=name, value=v)
+        if not (math.isfinite(self.hold_time) and self.hold_time >= 0.0):
+            raise InvalidInput("must be >= 0", field="hold_time", value=self.hold_time)
+        if not (0.0 < self.success_fraction <= 1.0):
+            raise InvalidInput("must lie in (0, 1]", field="success_fraction", value=self.success_fraction)
+        if self.waypoints < 2:
+            raise InvalidInput("need at least 2 waypoints", field="waypoints", value=self.waypoints)
+
+
+@dataclass(frozen=True)
+class Perturbation:
+    """The simulated object's offset from the nominal pose: yaw [rad] about world z, shift x, y [m]."""
+
+    d_yaw: float
+    dx: float
+    dy: float
+
+    @staticmethod
+    def draw(seed: int, sigma_r: float, sigma_t: float) -> Perturbation:
+        """``d_yaw ~ N(0, sigma_r^2)``, then ``dx, dy ~ N(0, sigma_t^2)`` from ``default_rng(seed)``."""
+        rng = np.random.default_rng(seed)
+        d_yaw = float(rng.normal(0.0, 1.0)) * sigma_r
+        dx, dy = (float(v) * sigma_t for v in rng.normal(0.0, 1.0, 2))
+        return Perturbation(d_yaw, dx, dy)
+
+    def apply(self, obj: TableObject) -> TableObject:
+        """The object moved by this perturbation, resting on the table."""
+        return obj.with_pose(obj.x + self.dx, obj.y + self.dy, obj.yaw + self.d_yaw)
+
+    def to_json_dict(self) -> dict[str, float]:
+        """``{"d_yaw": rad, "dx": m, "dy": m}``."""
+        return {"d_yaw": self.d_yaw, "dx": self.dx, "dy": self.dy}
+
+
+@dataclass(frozen=True)
+class TrialResult:
+    """The outcome of one trial (see the module docstring for the judge and the reasons).
+
+    Attributes:
+        seed: the trial's seed (echoed). success: the judge's verdict. reason: None on success, else why.
+        lift_height: [m] how far the object's centre rose between the start and the end of the trial
+            (0.0 when nothing was simulated).
+        max_lift: [m] the largest rise seen at any control tick.
+        touching_end: object-hand contact at the end. touching_after_close: object-hand contact at the end
+            of the closure.
+        perturbation: the drawn object offset. plan_reasons: the planner's reasons (empty: plan feasible).
+        sim_time: [s] simulated time. wall_time: [s] wall time of the whole trial (plan + IK + simulation).
+        timing: [s] wall time per part: ``plan``, ``ik``, ``sim``.
+        arm_collision_time: [s] sim time of the first arm collision (module docstring; None: none).
+    """
+
+    seed: int
+    success: bool
+    reason: str | None
+    lift_height: float
+    max_lift: float
+    touching_end: bool
+    touching_after_close: bool
+    perturbation: Perturbation
+    hand: str
+    object: str
+    strategy: str
+    sigma_r: float
+    sigma_t: float
+    plan_reasons: list[str]
+    sim_time: float
+    wall_time: float
+    timing: dict[str, float] = field(default_factory=dict)
+    arm_collision_time: float | None = None
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """A flat JSON record (units: m, rad, s)."""
+        return {
+            "seed": self.seed,
+            "success": self.success,
+            "reason": self.reason,
+            "lift_height": self.lift_height,
+            "max_lift": self.max_lift,
+            "touching_end": self.touching_end,
+            "touching_after_close": self.touching_after_close,
+            "perturbation": self.perturbation.to_json_dict(),
+            "hand": self.hand,
+            "object": self.object,
+            "strategy": self.strategy,
+            "sigma_r": self.sigma_r,
+            "sigma_t": self.sigma_t,
+            "plan_reasons": list(self.plan_reasons),
+            "sim_time": self.sim_time,
+            "wall_time": self.wall_time,
+            "timing": dict(self.timing),
+            "arm_collision_time": self.arm_collision_time,
+        }
+
+
+FrameCallback = Callable[[Scene, mujoco.MjData], None]
+"""Called with the scene and its data at the frame rate of a recording (and once at the start)."""
+
+
+_PLANNERS: dict[int, tuple[Settings | None, Planner]] = {}
+_PLANNERS_LOCK = threading.Lock()
+
+
+def default_planner(settings: Settings | None = None) -> Planner:
+    """One :class:`Planner` per process and settings object (its UR5 and collision worlds are built once)."""
+    with _PLANNERS_LOCK:
+        hit = _PLANNERS.get(id(settings))
+        if hit is None or hit[0] is not settings:
+            hit = (settings, Planner(settings))
+            _PLANNERS[id(settings)] = hit
+        return hit[1]
+
+
+def _quintic(s: float) -> float:
+    """Minimum-jerk time scaling: 0 -> 0, 1 -> 1 with zero velocity and acceleration at both ends."""
+    s = min(max(s, 0.0), 1.0)
+    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+def _interp(path: FloatArray, s: float) -> FloatArray:
+    """Point at parameter ``s`` in [0, 1] on the piecewise-linear joint path ``path`` (K, 6)."""
+    x = s * (len(path) - 1)
+    k = min(int(x), len(path) - 2)
+    u = x - k
+    return np.asarray((1.0 - u) * path[k] + u * path[k + 1], dtype=np.float64)
+
+
+def line_ik(ur5: UR5, T_start: FloatArray, T_end: FloatArray, q_start: FloatArray, n: int) -> FloatArray | None:
+    """Joint positions (n, 6) [rad] at ``n`` evenly spaced flange poses on the straight line from ``T_start``
+    to ``T_end`` (same orientation assumed: the orientation of ``T_end`` is used), each IK seeded by the
+    previous solution, starting from ``q_start`` (the solution at ``T_start``). None if a point is unreachable
+    or the arm would jump between IK branches (> 0.5 rad in a joint between neighbours)."""
+    out = [np.asarray(q_start, dtype=np.float64)]
+    q = out[0]
+    for k in range(1, n):
+        s = k / (n - 1)
+        T = T_end.copy()
+        T[:3, 3] = (1.0 - s) * T_start[:3, 3] + s * T_end[:3, 3]
+        ik = ur5.solve_ik(T, q, seeds=0, analytic=False)
+        if not ik.success or float(np.max(np.abs(ik.q - q))) > 0.5:
+            return None
+        q = ik.q
+        out.append(q)
+    return np.array(out)
+
+
+def run_trial(
+    hand: str,
+    obj: TableObject,
+    strategy: Literal["S", "C"],
+    *,
+    seed: int,
+    sigma_r: float = 0.0,
+    sigma_t: float = 0.0,
+    config: RolloutConfig | None = None,
+    planner: Planner | None = None,
+    settings: Settings | None = None,
+    plan: GraspPlan | None = None,
+    on_frame: FrameCallback | None = None,
+    frame_period: float = 1.0 / 30.0,
+) -> TrialResult:
+    """Run one trial (module docstring) of ``hand`` grasping ``obj`` (its nominal pose) with ``strategy``.
+
+    ``sigma_r`` [rad] and ``sigma_t`` [m] are the standard deviations of the object's yaw and x, y offsets;
+    ``seed`` seeds them. ``plan`` skips planning (a plan for the same hand, object and strategy, e.g. to test
+    a moved plan). ``on_frame`` is called every ``frame_period`` [s] of sim time (videos, frames).
+    Raises :class:`InvalidInput` for negative sigmas; never for an infeasible plan or a failed grasp.
+    """
+    t_wall = time.perf_counter()
+    cfg = config or RolloutConfig()
+    for name, v in (("sigma_r", sigma_r), ("sigma_t", sigma_t)):
+        if not (math.isfinite(v) and v >= 0.0):
+            raise InvalidInput("must be a finite number >= 0", field=name, value=v)
+    planner = planner or default_planner(settings)
+    pert = Perturbation.draw(seed, sigma_r, sigma_t)
+    common: dict[str, Any] = {
+        "seed": seed,
+        "perturbation": pert,
+        "object": obj.name or obj.kind,
+        "strategy": strategy,
+        "sigma_r": sigma_r,
+        "sigma_t": sigma_t,
+    }
+
+    t0 = time.perf_counter()
+    if plan is None:
+        plan = planner.plan(PlanRequest(hand=hand, obj=obj, strategy=strategy))
+    t_plan = time.perf_counter() - t0
+
+    def early(reason: str, timing: dict[str, float]) -> TrialResult:
+        return TrialResult(
+            success=False,
+            reason=reason,
+            lift_height=0.0,
+            max_lift=0.0,
+            touching_end=False,
+            touching_after_close=False,
+            hand=plan.hand,
+            plan_reasons=list(plan.reasons),
+            sim_time=0.0,
+            wall_time=time.perf_counter() - t_wall,
+            timing=timing,
+            **common,
+        )
+
+    if not plan.success:
+        return early(plan.reasons[0] if plan.reasons else "unreachable", {"plan": t_plan})
+    assert plan.grasp_pose is not None and plan.pre_grasp_pose is not None
+    assert plan.joint_positions is not None and plan.pre_grasp_joint_positions is not None
+
+    t0 = time.perf_counter()
+    ur5 = planner.ur5
+    T_grasp = np.asarray(plan.grasp_pose, dtype=np.float64)
+    T_pre = np.asarray(plan.pre_grasp_pose, dtype=np.float64)
+    q_pre = np.asarray(plan.pre_grasp_joint_positions, dtype=np.float64)
+    approach = line_ik(ur5, T_pre, T_grasp, q_pre, cfg.waypoints)
+    if approach is None:
+        return early("unreachable:approach", {"plan": t_plan, "ik": time.perf_counter() - t0})
+    T_top = T_grasp.copy()
+    T_top[2, 3] += cfg.lift
+    lift = line_ik(ur5, T_grasp, T_top, approach[-1], cfg.waypoints)
+    if lift is None:
+        return early("unreachable:lift", {"plan": t_plan, "ik": time.perf_counter() - t0})
+    t_ik = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    scene = build_scene(hand, obj, settings or planner.settings)
+    sim = _simulate(scene, pert.apply(obj), approach, lift, cfg, on_frame, frame_period)
+    t_sim = time.perf_counter() - t0
+
+    threshold = cfg.success_fraction * cfg.lift
+    reason: str | None
+    if sim.unstable:
+        reason = "sim_unstable"
+    elif sim.arm_collision_time is not None:
+        reason = "arm_collision"
+    elif sim.rise >= threshold and sim.touching_end:
+        reason = None
+    elif sim.touching_end:
+        reason = "not_lifted"
+    elif sim.touching_after_close:
+        reason = "dropped"
+    else:
+        reason = "no_contact"
+    return TrialResult(
+        success=reason is None,
+        reason=reason,
+        lift_height=sim.rise,
+        max_lift=sim.max_rise,
+        touching_end=sim.touching_end,
+        touching_after_close=sim.touching_after_close,
+        hand=plan.hand,
+        plan_reasons=[],
+        sim_time=sim.sim_time,
+        wall_time=time.perf_counter() - t_wall,
+        timing={"plan": t_plan, "ik": t_ik, "sim": t_sim},
+        arm_collision_time=sim.arm_collision_time,
+        **common,
+    )
+
+
+@dataclass
+class _SimOutcome:
+    rise: float = 0.0
+    max_rise: float = 0.0
+    touching_end: bool = False
+    touching_after_close: bool = False
+    arm_collision_time: float | None = None
+    unstable: bool = False
+    sim_time: float = 0.0
+
+
+def _simulate(
+    scene: Scene,
+    obj: TableObject,
+    approach: FloatArray,
+    lift: FloatArray,
+    cfg: RolloutConfig,
+    on_frame: FrameCallback | None,
+    frame_period: float,
+) -> _SimOutcome:
+    """Step the scene through approach, close, lift and hold; record what the judge needs."""
+    model = scene.model
+    data = scene.make_data(approach[0], obj.primitive_pose)
+    z0 = float(scene.object_position(data)[2])
+    out = _SimOutcome()
+    dt = float(model.opt.timestep)
+    nsub = max(1, round(cfg.control_period / dt))
+    tick = nsub * dt
+    closure = scene.hand.manifest.closure
+    arm_act, clo_act = scene.arm_actuators, scene.closure_actuators
+    c_open, c_closed = scene.closure_open, scene.closure_closed
+    next_frame = 0.0
+
+    def frame() -> None:
+        nonlocal next_frame
+        if on_frame is not None and data.time >= next_frame - 1e-9:
+            on_frame(scene, data)
+            next_frame += frame_period
+
+    def phase(
+        duration: float, arm: Callable[[float], FloatArray], hand: Callable[[float], FloatArray], grasping: bool
+    ) -> bool:
+        """Run ``duration`` [s] with targets as functions of the phase time; False if it diverged.
+
+        ``grasping``: the object is (meant to be) in the hand, so its contacts with the arm's links (held
+        against the flange, or falling past the wrist) are not arm collisions."""
+        n = max(1, math.ceil(duration / tick - 1e-9))
+        for k in range(n):
+            t = (k + 1) * tick  # targets of the end of the tick (servos lead by one tick)
+            data.ctrl[arm_act] = arm(t)
+            data.ctrl[clo_act] = hand(t)
+            mujoco.mj_step(model, data, nsub)
+            if not np.isfinite(data.qpos).all() or data.warning[_BADQACC].number:
+                out.unstable = True
+                return False
+            contacts = scene.contact_summary(data)
+            arm_hit = contacts.arm_table or (contacts.arm_object and not grasping)
+            if arm_hit and out.arm_collision_time is None:
+                out.arm_collision_time = float(data.time)
+            out.max_rise = max(out.max_rise, float(scene.object_position(data)[2]) - z0)
+            frame()
+        return True
+
+    frame()
+    q_grasp, q_top = approach[-1], lift[-1]
+
+    def open_hand(_t: float) -> FloatArray:
+        return c_open
+
+    def closed_hand(_t: float) -> FloatArray:
+        return c_closed
+
+    def ramp(t: float) -> FloatArray:
+        return closure_command(scene.hand, t, closure.duration)
+
+    ok = phase(cfg.approach_time, lambda t: _interp(approach, _quintic(t / cfg.approach_time)), open_hand, False)
+    ok = ok and phase(closure.duration + closure.settle, lambda _t: q_grasp, ramp, False)
+    if ok:
+        out.touching_after_close = scene.contact_summary(data).object_hand
+    ok = ok and phase(cfg.lift_time, lambda t: _interp(lift, _quintic(t / cfg.lift_time)), closed_hand, True)
+    ok = ok and (cfg.hold_time <= 0.0 or phase(cfg.hold_time, lambda _t: q_top, closed_hand, True))
+    out.sim_time = float(data.time)
+    if ok:
+        out.rise = float(scene.object_position(data)[2]) - z0
+        out.touching_end = scene.contact_summary(data).object_hand
+    return out
+
+
+def shift_plan(plan: GraspPlan, offset: NDArray[np.float64], ur5: UR5) -> GraspPlan:
+    """``plan`` with its grasp and pre-grasp flange poses moved by ``offset`` (3,) [m] in the world frame and
+    the joint positions re-solved by IK (seeded by the plan's). For tests and diagnostics: the planner's
+    collision checks are *not* repeated. An unreachable moved pose gives ``success=False`` with reason
+    ``unreachable``."""
+    if not plan.success or plan.grasp_pose is None or plan.pre_grasp_pose is None:
+        return plan
+    assert plan.joint_positions is not None
+    d = np.asarray(offset, dtype=np.float64).reshape(3)
+    T = np.asarray(plan.grasp_pose, dtype=np.float64).copy()
+    T_pre = np.asarray(plan.pre_grasp_pose, dtype=np.float64).copy()
+    T[:3, 3] += d
+    T_pre[:3, 3] += d
+    ik = ur5.solve_ik(T, np.asarray(plan.joint_positions))
+    ik_pre = ur5.solve_ik(T_pre, ik.q) if ik.success else ik
+    ok = ik.success and ik_pre.success
+    return dataclasses.replace(
+        plan,
+        success=ok,
+        reasons=[] if ok else ["unreachable"],
+        grasp_pose=T,
+        pre_grasp_pose=T_pre,
+        joint_positions=ik.q.tolist() if ok else None,
+        pre_grasp_joint_positions=ik_pre.q.tolist() if ok else None,
+    )

@@ -1,0 +1,434 @@
+"""The validation scene in MuJoCo: a table, the UR5 with a hand at ``tool0``, and an object as a free body.
+
+Composed with :class:`mujoco.MjSpec` (DESIGN §7) and compiled once per (hand, object shape, table height); a
+trial changes only the poses, the controls and the ``MjData`` (:func:`build_scene` is cached per process).
+
+Frames and units (DESIGN §3): the world frame is the UR5 ``base_link`` (z up) at the origin; the table top is
+the plane z = ``table_height`` [m] (default 0.0: the robot base stands on the table). Lengths [m], angles [rad],
+masses [kg], stiffness [N·m/rad] or [N/m], damping [N·m·s/rad] or [N·s/m].
+
+**UR5.** ``ur5_robot.urdf`` of example-robot-data, read at run time from the installed package (never copied):
+the ``package://`` mesh references are rewritten in memory to the installed collision STL meshes (the visual
+``.dae`` meshes cannot be loaded and are dropped), fixed links are kept (``fusestatic`` off) so that the
+``tool0`` body exists. Inertias are the URDF's. Each joint has a position actuator with the gains of
+:data:`ARM_KP` [N·m/rad] and :data:`ARM_KV` [N·m·s/rad], rotor inertia :data:`ARM_ARMATURE` [kg·m²], and every
+arm body is gravity-compensated (``gravcomp = 1``, as the UR controller does); the hand's and the object's
+weight are carried by the servos (sag below 1 mm at the flange for these gains).
+
+**Hand.** Built exactly as :func:`softsig_service.hands.model.compile_hand` builds it (the same ``MjSpec`` with
+the posture servos ``softsig_servo_*`` added for posture closures), then attached at ``tool0`` with
+``MjSpec.attach`` through a frame with the identity pose, every name prefixed with :data:`HAND_PREFIX`: the
+hand's ``mount`` body (the hand frame) coincides with ``tool0``. Its own contact bitmasks are kept.
+
+**Contacts.** Bit 0 (value 1) is the environment bit the hands' models already collide with (their
+``conaffinity`` has it): the table and the object have ``contype = 1``. Arm geoms have
+``contype = ARM_BIT`` and ``conaffinity = 0``, and the table and object have ``ARM_BIT`` in their
+``conaffinity``: the arm touches the table and the object (see ``arm_collision`` in
+:mod:`softsig_service.simulation.rollout`) but neither itself nor the hand (its links overlap at the joints;
+the hand is bolted to the flange). Static geoms (the base link on the table) never collide in MuJoCo. The table
+is the plane z = ``table_height`` for contacts (drawn as a 1.8 m square).
+
+**Simulation options.** Time step and integrator of the hand's manifest (``simulation.timestep``, 2 ms for the
+built-in hands; ``implicitfast``), elliptic friction cones with ``impratio = 10`` (less creep of held objects
+than MuJoCo's default pyramidal cones), gravity 9.81 m/s² along world -z.
+
+**Object.** A free body from a :class:`~softsig_service.planning.objects.TableObject`: its primitive (box,
+cylinder, sphere, ellipsoid, or a mesh from its vertices and faces) with the object's ``mass`` [kg] (uniform
+density) and sliding ``friction`` (torsional 0.005 m, rolling 0.0001 m, ``condim = 4``). MuJoCo combines the
+friction of two geoms in contact by taking the larger: object-hand contacts use max(object, hand geom), and
+object-table contacts max(object, :data:`TABLE_FRICTION`).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import threading
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from softsig_service.arm.ur5 import FLANGE_FRAME, JOINT_NAMES, URDF_RELATIVE, find_robots_dir
+from softsig_service.config import Settings
+from softsig_service.errors import InvalidHandModel
+from softsig_service.geometry.transforms import matrix_to_quat
+from softsig_service.hands.manifest import load_manifest
+from softsig_service.hands.model import HandModel, compile_hand, resolve_hand_path
+from softsig_service.planning.objects import TableObject
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+HAND_PREFIX = "hand/"
+"""Prefix of every name of the attached hand (bodies, joints, geoms, actuators, ...)."""
+OBJECT_BODY = "object"
+TABLE_GEOM = "table"
+
+ARM_KP: tuple[float, ...] = (6000.0, 6000.0, 4000.0, 1500.0, 1500.0, 1500.0)
+"""Position gains of the arm's joint servos [N·m/rad] (shoulder pan, shoulder lift, elbow, wrists 1-3)."""
+ARM_KV: tuple[float, ...] = (300.0, 300.0, 200.0, 40.0, 40.0, 40.0)
+"""Velocity (damping) gains of the arm's joint servos [N·m·s/rad]."""
+ARM_ARMATURE: tuple[float, ...] = (0.5, 0.5, 0.3, 0.05, 0.05, 0.05)
+"""Reflected rotor inertia of the arm's joints [kg·m²] (harmonic drives; keeps the stiff servos stable)."""
+ARM_FORCE_LIMIT: tuple[float, ...] = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)
+"""Servo torque limits [N·m]: the URDF's effort limits."""
+
+ENV_BIT = 1
+"""Contact bit of the environment (table, object); the hands' geoms have it in their ``conaffinity``."""
+ARM_BIT = 1 << 20
+"""Contact bit of the arm's geoms (collide with table and object only)."""
+
+TABLE_FRICTION = 0.5
+"""Sliding friction of the table top (MuJoCo uses the larger of the two geoms' coefficients)."""
+TABLE_HALF_SIZE: tuple[float, float] = (0.9, 0.9)
+"""Half-sizes [m] of the table top as drawn (centred at x = 0.3 m). For contacts it is the infinite plane
+z = ``table_height`` (cheaper than a box; every reachable object lies on it)."""
+GEOM_OTHER, GEOM_OBJECT, GEOM_HAND, GEOM_ARM, GEOM_TABLE = 0, 1, 2, 3, 4
+"""Geom classes of :attr:`Scene.geom_class`."""
+OBJECT_TORSIONAL_FRICTION = 0.005
+"""[m] torsional friction of the object (``condim = 4``)."""
+OBJECT_ROLLING_FRICTION = 0.0001
+"""[m] rolling friction of the object."""
+
+
+class ContactSummary(NamedTuple):
+    """Which pairs touch: the object and the hand, an arm link and the table, an arm link and the object."""
+
+    object_hand: bool
+    arm_table: bool
+    arm_object: bool
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """A compiled validation scene and the ids a rollout needs (read-only; make one ``MjData`` per trial).
+
+    Attributes:
+        model: the compiled ``MjModel`` (world = UR5 ``base_link``).
+        hand: the hand compiled alone (manifest, closure values, reference points in *its own* model).
+        hand_ref: the hand name or manifest path the scene was built from.
+        table_height: [m] z of the table top.
+        arm_qpos: qpos addresses of the six arm joints (order of :data:`~softsig_service.arm.ur5.JOINT_NAMES`).
+        arm_dof: dof addresses of the six arm joints.
+        arm_actuators: actuator ids of the six arm servos.
+        closure_actuators: scene actuator ids of the hand's closure actuators (same order as ``hand``'s).
+        closure_open, closure_closed: open and closed control values of those actuators.
+        posture_qpos: (scene qpos address, open value) to set before a posture closure starts.
+        object_body: body id of the object; object_qpos: qpos address of its free joint (xyz then quat wxyz).
+        object_geoms, hand_geoms, arm_geoms: geom ids of the object, the hand (``mount`` and below), the arm.
+        table_geom: geom id of the table.
+        flange_body: body id of ``tool0``; mount_body: body id of the hand's ``mount`` (the same frame).
+    """
+
+    model: mujoco.MjModel
+    hand: HandModel
+    hand_ref: str
+    table_height: float
+    arm_qpos: IntArray
+    arm_dof: IntArray
+    arm_actuators: IntArray
+    closure_actuators: IntArray
+    closure_open: FloatArray
+    closure_closed: FloatArray
+    posture_qpos: tuple[tuple[int, float], ...]
+    object_body: int
+    object_qpos: int
+    object_geoms: IntArray
+    hand_geoms: IntArray
+    arm_geoms: IntArray
+    table_geom: int
+    flange_body: int
+    mount_body: int
+
+    @property
+    def timestep(self) -> float:
+        """Simulation time step [s] (the hand manifest's ``simulation.timestep``)."""
+        return float(self.model.opt.timestep)
+
+    def make_data(self, q_arm: NDArray[np.float64], object_pose: NDArray[np.float64]) -> mujoco.MjData:
+        """A fresh ``MjData``: arm at ``q_arm`` [rad] (servo targets there too), hand open, object at rest at
+        ``object_pose`` (4x4 ``T_world_object``, its primitive frame as in ``TableObject.primitive_pose``)."""
+        data = mujoco.MjData(self.model)
+        data.qpos[self.arm_qpos] = q_arm
+        data.ctrl[self.arm_actuators] = q_arm
+        for adr, value in self.posture_qpos:
+            data.qpos[adr] = value
+        data.ctrl[self.closure_actuators] = self.closure_open
+        self.set_object_pose(data, object_pose)
+        mujoco.mj_forward(self.model, data)
+        return data
+
+    def set_object_pose(self, data: mujoco.MjData, T: NDArray[np.float64]) -> None:
+        """Place the object's free body at ``T`` (4x4, world) with zero velocity (call ``mj_forward`` after)."""
+        a = self.object_qpos
+        data.qpos[a : a + 3] = T[:3, 3]
+        data.qpos[a + 3 : a + 7] = matrix_to_quat(T[:3, :3])
+        dof = int(self.model.jnt_dofadr[self.model.body_jntadr[self.object_body]])
+        data.qvel[dof : dof + 6] = 0.0
+
+    def object_position(self, data: mujoco.MjData) -> FloatArray:
+        """World position [m] of the object's body frame (its centre)."""
+        return np.array(data.xpos[self.object_body])
+
+    def flange_pose(self, data: mujoco.MjData) -> FloatArray:
+        """``T_world_tool0`` (4x4) in the simulation."""
+        T = np.eye(4)
+        T[:3, :3] = data.xmat[self.flange_body].reshape(3, 3)
+        T[:3, 3] = data.xpos[self.flange_body]
+        return T
+
+    def contact_summary(self, data: mujoco.MjData) -> ContactSummary:
+        """Which classes of geoms touch in the current contacts (distance <= 0: penetrating, carrying force)."""
+        n = data.ncon
+        if n == 0:
+            return ContactSummary(False, False, False)
+        con = data.contact
+        cls = self.geom_class[con.geom[:n]]
+        cls = cls[con.dist[:n] <= 0.0]
+        c1, c2 = cls[:, 0], cls[:, 1]
+
+        def pair(a: int, b: int) -> bool:
+            return bool(np.any(((c1 == a) & (c2 == b)) | ((c1 == b) & (c2 == a))))
+
+        return ContactSummary(pair(GEOM_OBJECT, GEOM_HAND), pair(GEOM_ARM, GEOM_TABLE), pair(GEOM_ARM, GEOM_OBJECT))
+
+    @functools.cached_property
+    def geom_class(self) -> NDArray[np.int8]:
+        """Per geom: :data:`GEOM_OTHER`, :data:`GEOM_OBJECT`, :data:`GEOM_HAND`, :data:`GEOM_ARM` or
+        :data:`GEOM_TABLE`."""
+        cls = np.full(self.model.ngeom, GEOM_OTHER, dtype=np.int8)
+        cls[self.object_geoms] = GEOM_OBJECT
+        cls[self.hand_geoms] = GEOM_HAND
+        cls[self.arm_geoms] = GEOM_ARM
+        cls[self.table_geom] = GEOM_TABLE
+        return cls
+
+
+# ----------------------------------------------------------------------------------------------------------
+# composition
+# ----------------------------------------------------------------------------------------------------------
+
+
+def _ur5_spec() -> mujoco.MjSpec:
+    """The UR5 URDF as an ``MjSpec``: collision STL meshes from the installed package, no visuals, fixed
+    links kept (``tool0`` is a body), gravity-compensated bodies and one position servo per joint."""
+    robots = find_robots_dir()
+    urdf_path = robots / URDF_RELATIVE
+    root = ET.fromstring(urdf_path.read_text(encoding="utf-8"))
+    for tag in ("gazebo", "transmission"):
+        for el in root.findall(tag):
+            root.remove(el)
+    assets: dict[str, bytes] = {}
+    for link in root.findall("link"):
+        for visual in link.findall("visual"):
+            link.remove(visual)
+        for mesh in link.iter("mesh"):
+            ref = mesh.get("filename", "")
+            prefix = "package://example-robot-data/robots/"
+            if not ref.startswith(prefix):
+                raise InvalidHandModel("unexpected mesh reference in the UR5 URDF", field="urdf", value=ref)
+            rel = ref[len(prefix) :]
+            name = rel.replace("/", "_")
+            assets[name] = (robots / rel).read_bytes()
+            mesh.set("filename", name)
+    mj = ET.SubElement(root, "mujoco")
+    ET.SubElement(mj, "compiler", {"fusestatic": "false", "discardvisual": "false", "strippath": "false"})
+    spec = mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode"), assets=assets)
+    joints = {j.name: j for j in spec.joints}
+    for k, name in enumerate(JOINT_NAMES):
+        joint = joints[name]
+        joint.armature = ARM_ARMATURE[k]
+        act = spec.add_actuator(name=f"arm_{name}", target=name)
+        act.trntype = mujoco.mjtTrn.mjTRN_JOINT
+        act.set_to_position(kp=ARM_KP[k], kv=ARM_KV[k])
+        act.forcelimited = True
+        act.forcerange = [-ARM_FORCE_LIMIT[k], ARM_FORCE_LIMIT[k]]
+        act.ctrllimited = False
+    for body in spec.bodies:
+        if body.name != "world":
+            body.gravcomp = 1.0
+    for geom in spec.geoms:
+        geom.contype = ARM_BIT
+        geom.conaffinity = 0
+        geom.rgba = [0.62, 0.66, 0.72, 1.0]
+    return spec
+
+
+def _hand_spec(hand_ref: str, settings: Settings) -> tuple[mujoco.MjSpec, HandModel]:
+    """The hand's ``MjSpec`` exactly as :func:`compile_hand` builds it (posture servos included), and the
+    hand compiled alone from it."""
+    path = resolve_hand_path(hand_ref, settings)
+    manifest = load_manifest(path, max_bytes=settings.limits.max_model_bytes)
+    captured: list[mujoco.MjSpec] = []
+    hand = compile_hand(manifest, path.parent, settings.limits, edit=captured.append)
+    return captured[0], hand
+
+
+def _add_object(spec: mujoco.MjSpec, obj: TableObject) -> None:
+    prim = obj.primitive()
+    body = spec.worldbody.add_body(name=OBJECT_BODY)
+    body.add_freejoint(name="object_free")
+    geom = body.add_geom(name="object_geom")
+    if prim.kind == "mesh":
+        assert prim.vertices is not None and prim.faces is not None
+        mesh = spec.add_mesh(name="object_mesh")
+        mesh.uservert = np.asarray(prim.vertices, dtype=np.float64).ravel().tolist()
+        mesh.userface = np.asarray(prim.faces, dtype=np.int64).ravel().tolist()
+        geom.type = mujoco.mjtGeom.mjGEOM_MESH
+        geom.meshname = "object_mesh"
+    else:
+        geom.type = {
+            "box": mujoco.mjtGeom.mjGEOM_BOX,
+            "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
+            "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
+            "ellipsoid": mujoco.mjtGeom.mjGEOM_ELLIPSOID,
+        }[prim.kind]
+        size = list(prim.size) + [0.0] * (3 - len(prim.size))
+        geom.size = size
+    geom.mass = obj.mass
+    geom.friction = [obj.friction, OBJECT_TORSIONAL_FRICTION, OBJECT_ROLLING_FRICTION]
+    geom.condim = 4
+    geom.contype = ENV_BIT
+    geom.conaffinity = ENV_BIT | ARM_BIT
+    geom.rgba = [0.85, 0.35, 0.2, 1.0]
+
+
+def _compose(hand_ref: str, obj: TableObject, settings: Settings) -> Scene:
+    spec = _ur5_spec()
+    spec.modelname = "softsig_validation"
+    spec.compiler.degree = False
+    hand_spec, hand = _hand_spec(hand_ref, settings)
+    sim = hand.manifest.simulation
+    spec.option.timestep = sim.timestep
+    spec.option.integrator = hand.model.opt.integrator
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    spec.option.impratio = 10.0
+    spec.visual.headlight.ambient = [0.4, 0.4, 0.4]
+    spec.visual.headlight.diffuse = [0.6, 0.6, 0.6]
+
+    flange = spec.body(FLANGE_FRAME)
+    frame = flange.add_frame()
+    spec.attach(hand_spec, prefix=HAND_PREFIX, frame=frame)
+
+    th = obj.table_height
+    table = spec.worldbody.add_geom(name=TABLE_GEOM)
+    table.type = mujoco.mjtGeom.mjGEOM_PLANE
+    table.size = [*TABLE_HALF_SIZE, 0.05]
+    table.pos = [0.3, 0.0, th]
+    table.friction = [TABLE_FRICTION, 0.005, 0.0001]
+    table.contype = ENV_BIT
+    table.conaffinity = ENV_BIT | ARM_BIT
+    table.rgba = [0.78, 0.7, 0.58, 1.0]
+    light = spec.worldbody.add_light(name="key")
+    light.pos = [0.6, -0.6, 1.5]
+    light.dir = [-0.3, 0.3, -1.0]
+    cam = spec.worldbody.add_camera(name="overview")
+    cam.pos = [0.85, -0.42, 0.36]
+    cam.mode = mujoco.mjtCamLight.mjCAMLIGHT_TARGETBODY
+    cam.targetbody = OBJECT_BODY
+    _add_object(spec, obj)
+    try:
+        model = spec.compile()
+    except ValueError as exc:
+        raise InvalidHandModel(f"MuJoCo cannot compile the validation scene: {exc}", field="hand") from None
+    return _index(model, hand, hand_ref, th)
+
+
+def _index(model: mujoco.MjModel, hand: HandModel, hand_ref: str, table_height: float) -> Scene:
+    def body_id(name: str) -> int:
+        return int(model.body(name).id)
+
+    arm_joints = [model.joint(n) for n in JOINT_NAMES]
+    mount = body_id(HAND_PREFIX + hand.model.body(hand.mount_body).name)
+    # the hand's bodies: the mount and its descendants
+    in_hand = np.zeros(model.nbody, dtype=bool)
+    in_hand[mount] = True
+    for b in range(mount + 1, model.nbody):
+        in_hand[b] = in_hand[model.body_parentid[b]]
+    obj = body_id(OBJECT_BODY)
+    geom_body = model.geom_bodyid
+    hand_geoms = np.flatnonzero(in_hand[geom_body])
+    object_geoms = np.flatnonzero(geom_body == obj)
+    arm_bodies = {
+        body_id(n)
+        for n in (
+            "base_link",
+            "shoulder_link",
+            "upper_arm_link",
+            "forearm_link",
+            "wrist_1_link",
+            "wrist_2_link",
+            "wrist_3_link",
+            "ee_link",
+        )
+    }
+    arm_geoms = np.array([g for g in range(model.ngeom) if int(geom_body[g]) in arm_bodies], dtype=np.int64)
+    closure_ids = [int(model.actuator(HAND_PREFIX + hand.model.actuator(a).name).id) for a in hand.closure_actuators]
+    posture: list[tuple[int, float]] = []
+    for adr, value in hand.posture_qpos:
+        j = int(np.flatnonzero(hand.model.jnt_qposadr == adr)[0])
+        posture.append((int(model.joint(HAND_PREFIX + hand.model.joint(j).name).qposadr[0]), float(value)))
+    return Scene(
+        model=model,
+        hand=hand,
+        hand_ref=hand_ref,
+        table_height=table_height,
+        arm_qpos=np.array([int(j.qposadr[0]) for j in arm_joints], dtype=np.int64),
+        arm_dof=np.array([int(j.dofadr[0]) for j in arm_joints], dtype=np.int64),
+        arm_actuators=np.array([int(model.actuator(f"arm_{n}").id) for n in JOINT_NAMES], dtype=np.int64),
+        closure_actuators=np.array(closure_ids, dtype=np.int64),
+        closure_open=np.asarray(hand.closure_open, dtype=np.float64).copy(),
+        closure_closed=np.asarray(hand.closure_closed, dtype=np.float64).copy(),
+        posture_qpos=tuple(posture),
+        object_body=obj,
+        object_qpos=int(model.jnt_qposadr[model.body_jntadr[obj]]),
+        object_geoms=object_geoms.astype(np.int64),
+        hand_geoms=hand_geoms.astype(np.int64),
+        arm_geoms=arm_geoms,
+        table_geom=int(model.geom(TABLE_GEOM).id),
+        flange_body=body_id(FLANGE_FRAME),
+        mount_body=mount,
+    )
+
+
+def _shape_key(obj: TableObject) -> tuple[object, ...]:
+    """What of an object goes into the compiled model: shape, size, mass, friction and table height."""
+    mesh = b""
+    if obj.vertices is not None and obj.faces is not None:
+        mesh = np.ascontiguousarray(obj.vertices, dtype=np.float64).tobytes()
+        mesh += np.ascontiguousarray(obj.faces, dtype=np.int64).tobytes()
+    return (
+        obj.kind,
+        tuple(obj.dimensions),
+        obj.standing,
+        obj.mass,
+        obj.friction,
+        obj.table_height,
+        hashlib.sha1(mesh).hexdigest(),
+    )
+
+
+def build_scene(hand_ref: str, obj: TableObject, settings: Settings | None = None) -> Scene:
+    """The scene for ``hand_ref`` (built-in name or manifest path) and the shape of ``obj`` (its pose is not
+    part of the model: place it with :meth:`Scene.make_data`). Compiled once per process and reused for every
+    object of the same shape, mass, friction and table height (thread-safe)."""
+    settings = settings or Settings()
+    path = resolve_hand_path(hand_ref, settings)
+    key = (hand_ref, str(path), path.stat().st_mtime_ns, str(settings.hands_dir), settings.limits, _shape_key(obj))
+    with _CACHE_LOCK:
+        scene = _CACHE.get(key)
+        if scene is None:
+            scene = _compose(hand_ref, obj, settings)
+            if len(_CACHE) >= _CACHE_SIZE:
+                _CACHE.pop(next(iter(_CACHE)))
+            _CACHE[key] = scene
+    return scene
+
+
+_CACHE: dict[tuple[object, ...], Scene] = {}
+_CACHE_SIZE = 32
+_CACHE_LOCK = threading.Lock()

@@ -1,0 +1,157 @@
+"""/v1/plans: planning through the app, stored plans, the drawing, strict bodies and the body limit."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+from api_helpers import AUTH, assert_problem, make_settings
+from fastapi.testclient import TestClient
+
+from softsig_service.api.app import create_app
+from softsig_service.geometry.transforms import Pose, quat_to_matrix
+from softsig_service.planning.objects import builtin_object
+from softsig_service.planning.planner import Planner, PlanRequest
+
+BOX = {"kind": "builtin", "name": "box", "pose": {"x": 0.5, "y": 0.05, "yaw": 0.4}}
+
+
+def test_plan_c_is_the_planners_plan_and_is_stored(api: TestClient) -> None:
+    body = {"hand": "pisa_iit_softhand", "object": BOX, "strategy": "C"}
+    r = api.post("/v1/plans", json=body, headers=AUTH)
+    assert r.status_code == 201, r.text
+    plan = r.json()
+    assert plan["success"] is True and plan["reasons"] == [] and plan["strategy"] == "C"
+    assert r.headers["location"] == f"/v1/plans/{plan['id']}"
+    pose = plan["grasp_pose"]
+    assert pose["frame_id"] == "base_link" and set(pose["orientation"]) == {"x", "y", "z", "w"}
+    R = quat_to_matrix([pose["orientation"][k] for k in "wxyz"])
+    assert R[2, 2] < -0.98, "a top grasp: hand +z points down"
+    assert len(plan["joint_positions"]) == 6 and len(plan["joint_names"]) == 6
+    assert set(plan["approach"]) >= {"direction", "desired_distance", "min_distance"}
+    assert plan["quality"]["alignment_error"] <= math.radians(1.0)
+    # the same plan as the planner in-process (same inputs, same numbers)
+    local = Planner().plan(
+        PlanRequest(hand="pisa_iit_softhand", obj=builtin_object("box", x=0.5, y=0.05, yaw=0.4), strategy="C")
+    )
+    assert local.grasp_pose is not None and local.joint_positions is not None
+    assert np.allclose(Pose.from_wire(pose).matrix(), local.grasp_pose, atol=1e-9)
+    assert np.allclose(plan["joint_positions"], local.joint_positions, atol=1e-9)
+
+    stored = api.get(f"/v1/plans/{plan['id']}").json()
+    assert stored["grasp_pose"] == plan["grasp_pose"] and stored["id"] == plan["id"]
+    listed = api.get("/v1/plans", params={"hand": "pisa_iit_softhand"}).json()
+    assert plan["id"] in {p["id"] for p in listed["items"]}
+    unstored = api.post("/v1/plans", json={**body, "store": False}, headers=AUTH).json()
+    assert unstored["id"] is None and unstored["success"] is True
+
+
+def test_concurrent_plans(api: TestClient) -> None:
+    """Plans from several threads at once (the planner alone is not safe for that: the app serialises it)."""
+    results: list[int] = []
+
+    def worker(k: int) -> None:
+        for i in range(8):
+            pose = {"x": 0.45 + 0.01 * i, "y": -0.1 + 0.05 * k, "yaw": 0.3 * i - k}
+            body = {"hand": "pisa_iit_softhand", "object": {**BOX, "pose": pose}, "strategy": "C", "store": False}
+            results.append(api.post("/v1/plans", json=body, headers=AUTH).status_code)
+
+    threads = [threading.Thread(target=worker, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert results == [201] * 32
+
+
+def test_plan_image_is_a_real_drawing(api: TestClient) -> None:
+    import matplotlib.image
+
+    plan = api.post("/v1/plans", json={"hand": "sdm_hand", "object": BOX, "strategy": "S"}, headers=AUTH).json()
+    r = api.get(f"/v1/plans/{plan['id']}/image.png")
+    assert r.status_code == 200 and r.headers["content-type"] == "image/png"
+    assert r.content[:8] == b"\x89PNG\r\n\x1a\n"
+    img = matplotlib.image.imread(io.BytesIO(r.content))
+    assert img.shape[0] >= 400 and img.shape[1] >= 400
+    rgb = img[..., :3].reshape(-1, 3)
+    colours = {tuple(c) for c in np.round(rgb[:: max(1, len(rgb) // 20000)] * 20)}
+    assert len(colours) > 30, "more than a blank canvas: footprint, hand, axes, legend"
+    again = api.get(f"/v1/plans/{plan['id']}/image.png")
+    assert again.content == r.content, "drawn once, then served from the cache"
+    assert_problem(api.get("/v1/plans/" + "0" * 32 + "/image.png"), 404, "plan_id")
+
+
+def test_infeasible_plan_is_a_result_not_an_error(api: TestClient) -> None:
+    far = {"kind": "builtin", "name": "apple", "pose": {"x": 3.0, "y": 0.0}}
+    r = api.post("/v1/plans", json={"hand": "pisa_iit_softhand", "object": far, "strategy": "S"}, headers=AUTH)
+    assert r.status_code == 201
+    assert r.json()["success"] is False and "unreachable" in r.json()["reasons"]
+    assert r.json()["joint_positions"] is None
+
+
+def test_bad_plan_bodies_are_4xx_problems_naming_the_field(api: TestClient) -> None:
+    ok = {"hand": "pisa_iit_softhand", "object": BOX, "strategy": "C"}
+    cases = [
+        ({**ok, "strategy": "X"}, "strategy"),
+        ({**ok, "hand": "no_such_hand"}, "hand"),
+        ({**ok, "speed": 3}, "speed"),
+        ({**ok, "object": {"kind": "box", "size": [0.1, 0.05], "mass": 0.2}}, "object.size[2]"),
+        ({**ok, "object": {"kind": "box", "size": [0.1, 0.05, -0.1], "mass": 0.2}}, "object.size[2]"),
+        ({**ok, "object": {"kind": "sphere", "radius": 0.03}}, "object.mass"),
+        ({**ok, "object": {"kind": "pyramid"}}, "object.kind"),
+        ({**ok, "current_q": [0, 0, 0]}, "current_q[3]"),
+        ({**ok, "current_q": [9, 0, 0, 0, 0, 0]}, "current_q[0]"),
+        ({**ok, "approach_distance": 2.0}, "approach_distance"),
+        ({**ok, "object": {**BOX, "pose": {"x": 0.5, "roll": 1}}}, "object.pose.roll"),
+        (
+            {
+                **ok,
+                "object": {
+                    "kind": "mesh",
+                    "mass": 0.1,
+                    "vertices": [[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.1]],
+                    "faces": [[0, 1, 7]],
+                },
+            },
+            None,
+        ),
+    ]
+    for body, field in cases:
+        r = api.post("/v1/plans", json=body, headers=AUTH)
+        problem = assert_problem(r, 422, field)
+        assert problem["detail"]
+    nan = json.dumps(ok).replace('"strategy": "C"', '"strategy": "C", "margin": NaN')
+    r = api.post("/v1/plans", content=nan, headers={**AUTH, "Content-Type": "application/json"})
+    assert_problem(r, 422, "margin")
+    inf = json.dumps(ok).replace('"yaw": 0.4', '"yaw": Infinity')
+    r = api.post("/v1/plans", content=inf, headers={**AUTH, "Content-Type": "application/json"})
+    assert_problem(r, 422, "object.pose.yaw")
+    r = api.post("/v1/plans", content=b'{"hand": ', headers={**AUTH, "Content-Type": "application/json"})
+    assert_problem(r, 400, "$")
+    assert_problem(api.post("/v1/plans", json=[1, 2], headers=AUTH), 422)
+    assert_problem(api.get("/v1/plans/not-an-id"), 422, "plan_id")
+    assert_problem(api.get("/v1/plans", params={"limit": 0}), 422, "limit")
+    assert_problem(api.get("/v1/plans/" + "f" * 32), 404, "plan_id")
+
+
+def test_body_limit(tmp_path: Path) -> None:
+    with TestClient(create_app(make_settings(tmp_path, max_body_bytes=2000))) as client:
+        big = {"hand": "pisa_iit_softhand", "object": BOX, "strategy": "C", "pad": "x" * 3000}
+        body = assert_problem(client.post("/v1/plans", json=big, headers=AUTH), 413, "body")
+        assert body["limit"] == 2000
+
+        def chunks() -> Iterator[bytes]:  # streamed without Content-Length
+            yield b'{"hand": "pisa_iit_softhand", "pad": "'
+            for _ in range(10):
+                yield b"y" * 500
+            yield b'"}'
+
+        r = client.post("/v1/plans", content=chunks(), headers={**AUTH, "Content-Type": "application/json"})
+        assert_problem(r, 413, "body")
+        small = {"hand": "pisa_iit_softhand", "object": BOX, "strategy": "S"}
+        assert client.post("/v1/plans", json=small, headers=AUTH).status_code == 201

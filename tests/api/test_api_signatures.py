@@ -1,0 +1,121 @@
+"""/v1/hands/{hand}/signatures: closure signatures from simulation and from uploaded markers, versions, If-Match."""
+
+from __future__ import annotations
+
+import io
+import math
+import threading
+
+from api_helpers import AUTH, assert_problem
+from fastapi.testclient import TestClient
+
+from softsig_service.hands.closure import simulate_closure
+from softsig_service.hands.model import load_hand
+from softsig_service.signatures.closure import compute_closure_signature
+
+
+def _markers_csv(hand: str, *, rename: dict[str, str] | None = None, nan_at: tuple[int, int] | None = None) -> bytes:
+    traj = simulate_closure(load_hand(hand), surface_points=0)
+    out = io.StringIO()
+    out.write("time,point,x,y,z\n")
+    for t, time in enumerate(traj.times):
+        for i, name in enumerate(traj.point_names):
+            x, y, z = (float(v) for v in traj.positions[t, i])
+            if nan_at == (t, i):
+                x = math.nan
+            out.write(f"{float(time)!r},{(rename or {}).get(name, name)},{x!r},{y!r},{z!r}\n")
+    return out.getvalue().encode()
+
+
+def test_closure_signature_versions(api: TestClient) -> None:
+    r1 = api.post("/v1/hands/sdm_hand/signatures", json={"kind": "closure", "method": "ellipsoid"}, headers=AUTH)
+    assert r1.status_code == 201, r1.text
+    v1 = r1.json()
+    assert v1["version"] == 1 and v1["kind"] == "closure" and v1["source"] == "simulation" and v1["hand_revision"] == 1
+    assert r1.headers["location"] == "/v1/hands/sdm_hand/signatures/1" and r1.headers["etag"] == '"sdm_hand.v1"'
+    sig = v1["signature"]
+    assert sig["method"] == "ellipsoid" and sig["frame_id"] == "hand"
+    assert {"axis", "anchor", "magnitude", "deformation", "axes", "distinctness", "initial_ellipsoid"} <= set(sig)
+    assert math.isclose(math.fsum(a * a for a in sig["axis"]), 1.0, rel_tol=1e-9)
+    # the stored CS is the library's CS of the same closure
+    expected = compute_closure_signature(simulate_closure(load_hand("sdm_hand"), surface_points=0), "ellipsoid")
+    assert all(math.isclose(a, b, abs_tol=1e-9) for a, b in zip(sig["axis"], expected.axis, strict=True))
+
+    r2 = api.post("/v1/hands/sdm_hand/signatures", json={"kind": "closure", "method": "pca"}, headers=AUTH)
+    assert r2.status_code == 201 and r2.json()["version"] == 2
+    # If-Match with the latest version's ETag: a stale one is refused and stores nothing
+    stale = {**AUTH, "If-Match": '"sdm_hand.v1"'}
+    assert_problem(api.post("/v1/hands/sdm_hand/signatures", json={"kind": "closure"}, headers=stale), 412, "If-Match")
+    fresh = {**AUTH, "If-Match": r2.headers["etag"]}
+    r3 = api.post("/v1/hands/sdm_hand/signatures", json={"kind": "closure", "method": "mesh"}, headers=fresh)
+    assert r3.status_code == 201 and r3.json()["version"] == 3
+
+    listing = api.get("/v1/hands/sdm_hand/signatures").json()
+    assert [s["version"] for s in listing["items"]] == [3, 2, 1] and listing["total"] == 3
+    assert [s["method"] for s in listing["items"]] == ["mesh", "pca", "ellipsoid"]
+    latest = api.get("/v1/hands/sdm_hand/signatures/latest", params={"kind": "closure"})
+    assert latest.json()["version"] == 3 and latest.headers["etag"] == '"sdm_hand.v3"'
+    old = api.get("/v1/hands/sdm_hand/signatures/1").json()
+    assert old["signature"] == sig, "a stored version never changes"
+    assert_problem(api.get("/v1/hands/sdm_hand/signatures/99"), 404, "version")
+    assert_problem(api.get("/v1/hands/sdm_hand/signatures/latest", params={"kind": "stiffness"}), 404, "kind")
+    assert api.get("/v1/hands/sdm_hand").json()["signature_count"] == 3
+
+
+def test_signature_bad_input(api: TestClient) -> None:
+    url = "/v1/hands/sdm_hand/signatures"
+    body = assert_problem(api.post(url, json={"kind": "closure", "method": "fourier"}, headers=AUTH), 422, "method")
+    assert body["choices"] == ["ellipsoid", "mesh", "pca"]
+    body = assert_problem(api.post(url, json={"kind": "closure", "extra": 1}, headers=AUTH), 422, "extra")
+    assert body["errors"][0]["type"] == "extra_forbidden"
+    body = assert_problem(api.post(url, json={"kind": "telepathy"}, headers=AUTH), 422, "kind")
+    assert "closure" in body["choices"]
+    assert_problem(api.post("/v1/hands/no_such_hand/signatures", json={"kind": "closure"}, headers=AUTH), 404, "hand")
+    assert_problem(api.post("/v1/hands/Bad%20Name/signatures", json={"kind": "closure"}, headers=AUTH), 422, "hand")
+    assert_problem(api.post(url, json={"kind": "closure"}), 401, "X-API-Key")
+
+
+def test_markers_upload(api: TestClient) -> None:
+    url = "/v1/hands/parallel_gripper/signatures/markers"
+    csv = _markers_csv("parallel_gripper")
+    r = api.post(url, files={"file": ("closure.csv", csv)}, data={"method": "ellipsoid"}, headers=AUTH)
+    assert r.status_code == 201, r.text
+    out = r.json()
+    assert out["source"] == "markers" and out["params"]["file"] == "closure.csv" and len(out["params"]["sha256"]) == 64
+    simulated = api.post("/v1/hands/parallel_gripper/signatures", json={"kind": "closure"}, headers=AUTH).json()
+    for a, b in zip(out["signature"]["axis"], simulated["signature"]["axis"], strict=True):
+        assert math.isclose(a, b, abs_tol=1e-9), "markers of the simulated closure give the simulated CS"
+    assert simulated["version"] == out["version"] + 1
+
+    unknown = _markers_csv("parallel_gripper", rename={"left_tip": "thumb"})
+    body = assert_problem(api.post(url, files={"file": ("m.csv", unknown)}, headers=AUTH), 422)
+    assert body["field"].endswith(": point") and body["value"] == "thumb" and "left_tip" in body["choices"]
+    r = api.post(url, files={"file": ("m.csv", unknown)}, data={"strict_points": "false"}, headers=AUTH)
+    assert r.status_code == 201, "with strict_points off any point names are accepted"
+    nan = _markers_csv("parallel_gripper", nan_at=(3, 1))
+    body = assert_problem(api.post(url, files={"file": ("m.csv", nan)}, headers=AUTH), 422)
+    assert body["field"].endswith(": x")
+    assert_problem(api.post(url, files={"file": ("m.txt", csv)}, headers=AUTH), 422, "file")
+    assert_problem(api.post(url, files={"file": ("m.csv", b"\xff\xfe\x00bad")}, headers=AUTH), 422, "file")
+    assert_problem(api.post(url, files={"file": ("m.json", b"{not json")}, headers=AUTH), 422, "$")
+
+
+def test_concurrent_signature_writes_lose_nothing(api: TestClient) -> None:
+    n_threads, per_thread = 6, 3
+    url = "/v1/hands/rbo_hand2/signatures"
+    errors: list[str] = []
+
+    def worker() -> None:
+        for _ in range(per_thread):
+            r = api.post(url, json={"kind": "closure", "method": "pca"}, headers=AUTH)
+            if r.status_code != 201:
+                errors.append(r.text)
+
+    threads = [threading.Thread(target=worker) for _ in range(n_threads)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == []
+    versions = sorted(s["version"] for s in api.get(url, params={"limit": 500}).json()["items"])
+    assert versions == list(range(1, n_threads * per_thread + 1))

@@ -1,0 +1,136 @@
+"""The registry on a real SQLite file: settings of the connection, versions under concurrency, ETags, cascades."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from sqlalchemy import text
+
+from softsig_service.errors import Conflict, HandNotFound, NotFound, PreconditionFailed, ServiceBusy
+from softsig_service.registry import repository as repo
+from softsig_service.registry.db import Registry
+
+
+@pytest.fixture()
+def reg(tmp_path: Path) -> Iterator[Registry]:
+    r = Registry(f"sqlite:///{tmp_path / 'sub' / 'registry.sqlite3'}", busy_timeout=30.0)
+    yield r
+    r.dispose()
+
+
+def _hand(reg: Registry, name: str = "h1") -> repo.HandRecord:
+    return repo.add_hand(reg, name=name, manifest_path=f"/x/{name}/hand.toml", info={"kind": "soft"}, folder="/x")
+
+
+def test_sqlite_connections_are_configured(reg: Registry) -> None:
+    with reg.engine.connect() as conn:
+        assert conn.execute(text("PRAGMA journal_mode")).scalar() == "wal"
+        assert conn.execute(text("PRAGMA foreign_keys")).scalar() == 1
+        assert conn.execute(text("PRAGMA busy_timeout")).scalar() == 30000
+    assert reg.ping()
+
+
+def test_concurrent_versions_are_gapless(reg: Registry) -> None:
+    _hand(reg, "h1")
+    _hand(reg, "h2")
+    n_threads, per_thread = 8, 25
+    errors: list[BaseException] = []
+
+    def writer(k: int) -> None:
+        try:
+            for i in range(per_thread):
+                repo.add_signature(reg, "h1" if (k + i) % 2 else "h2", kind="closure", method="pca", source="simulation",
+                                   data={"k": k, "i": i})  # fmt: skip
+        except BaseException as exc:
+            errors.append(exc)
+
+    threads = [threading.Thread(target=writer, args=(k,)) for k in range(n_threads)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == []
+    total = 0
+    for name in ("h1", "h2"):
+        items, count = repo.list_signatures(reg, name, limit=1000)
+        versions = sorted(s.version for s in items)
+        assert versions == list(range(1, count + 1)), "1..N without gaps or duplicates"
+        assert repo.get_hand(reg, name).signature_count == count
+        total += count
+    assert total == n_threads * per_thread
+    payloads = {(s.data["k"], s.data["i"]) for n in ("h1", "h2") for s in repo.list_signatures(reg, n, limit=1000)[0]}
+    assert len(payloads) == n_threads * per_thread, "every write is there"
+
+
+def test_versions_if_match_and_revisions(reg: Registry) -> None:
+    h = _hand(reg)
+    assert h.etag == '"h1.r1"'
+    s1 = repo.add_signature(reg, "h1", kind="closure", method="ellipsoid", source="markers", data={"a": 1})
+    with pytest.raises(PreconditionFailed):
+        repo.add_signature(reg, "h1", kind="closure", method="pca", source="simulation", data={}, if_match='"h1.v7"')
+    s2 = repo.add_signature(reg, "h1", kind="stiffness", method="apple", source="simulation", data={"b": 2},
+                            if_match=s1.etag)  # fmt: skip
+    assert (s1.version, s2.version) == (1, 2)
+    assert repo.latest_signature(reg, "h1", kind="closure").version == 1
+    assert repo.latest_signature(reg, "h1").version == 2
+    with pytest.raises(NotFound):
+        repo.get_signature(reg, "h1", 3)
+    # a signature computed from an older revision of the hand is refused
+    new, old_folder = repo.replace_hand(reg, "h1", if_match=h.etag, manifest_path="/y/hand.toml", folder="/y",
+                                       files=[], info={})  # fmt: skip
+    assert new.revision == 2 and old_folder == "/x"
+    with pytest.raises(Conflict):
+        repo.add_signature(reg, "h1", kind="closure", method="pca", source="simulation", data={}, hand_revision=1)
+    with pytest.raises(PreconditionFailed):
+        repo.delete_hand(reg, "h1", if_match=h.etag)
+    assert repo.etag_matches(new.etag, '"zzz", ' + new.etag) and repo.etag_matches(new.etag, "*")
+    assert not repo.etag_matches(None, "*")
+
+
+def test_delete_cascades_and_builtins_are_read_only(reg: Registry) -> None:
+    _hand(reg)
+    repo.add_signature(reg, "h1", kind="closure", method="pca", source="simulation", data={})
+    repo.delete_hand(reg, "h1", if_match=None)
+    with reg.read() as s:
+        assert s.execute(text("SELECT count(*) FROM signatures")).scalar() == 0
+    with pytest.raises(HandNotFound):
+        repo.get_hand(reg, "h1")
+    assert repo.sync_builtin_hand(reg, name="b", manifest_path="/b/hand.toml", info={"v": 1}) == "added"
+    assert repo.sync_builtin_hand(reg, name="b", manifest_path="/b/hand.toml", info={"v": 1}) == "unchanged"
+    assert repo.sync_builtin_hand(reg, name="b", manifest_path="/b/hand.toml", info={"v": 2}) == "updated"
+    assert repo.get_hand(reg, "b").revision == 2
+    with pytest.raises(Conflict):
+        repo.delete_hand(reg, "b", if_match=None)
+    with pytest.raises(Conflict):
+        _hand(reg, "b")
+
+
+def test_jobs(reg: Registry) -> None:
+    j = repo.add_job(reg, kind="validation", params={"trials": 3}, time_limit=10.0, max_unfinished=2)
+    repo.add_job(reg, kind="validation", params={}, time_limit=10.0, max_unfinished=2)
+    with pytest.raises(ServiceBusy):
+        repo.add_job(reg, kind="validation", params={}, time_limit=10.0, max_unfinished=2)
+    repo.update_job(reg, j.id, status="running", progress=0.5)
+    done = repo.update_job(reg, j.id, status="succeeded", progress=1.0, result={"ok": True})
+    assert done is not None and done.finished
+    assert repo.update_job(reg, j.id, progress=0.7) is None, "a finished job stays finished"
+    with pytest.raises(Conflict):
+        repo.request_cancel(reg, j.id)
+    assert repo.interrupt_unfinished_jobs(reg, "restart") == 1
+    items, total = repo.list_jobs(reg, status="failed")
+    assert total == 1 and items[0].error is not None and items[0].error["detail"] == "restart"
+
+
+def test_restart_keeps_the_registry(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'r.sqlite3'}"
+    first = Registry(url)
+    _hand(first)
+    plan = repo.add_plan(first, hand="h1", strategy="C", success=True, request={"a": 1}, result={"b": 2})
+    first.dispose()
+    second = Registry(url)
+    assert repo.get_hand(second, "h1").name == "h1"
+    assert repo.get_plan(second, plan.id).result == {"b": 2}
+    second.dispose()

@@ -1,0 +1,215 @@
+"""One validation trial: nominal grasps, moved plans, determinism, planning failures, the validate command."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import typer
+from typer.testing import CliRunner
+
+from softsig_service.errors import InvalidInput
+from softsig_service.gl_backend import render_unavailable_reason
+from softsig_service.planning.objects import builtin_object
+from softsig_service.planning.planner import PlanRequest
+from softsig_service.simulation.commands import validate
+from softsig_service.simulation.rollout import (
+    REASONS,
+    Perturbation,
+    RolloutConfig,
+    TrialResult,
+    default_planner,
+    run_trial,
+    shift_plan,
+)
+
+LIFT_THRESHOLD = 0.8 * 0.15
+
+
+def _comparable(r: TrialResult) -> dict[str, Any]:
+    d = r.to_json_dict()
+    d.pop("wall_time")
+    d.pop("timing")
+    return d
+
+
+@pytest.mark.parametrize("strategy", ["S", "C"])
+def test_parallel_gripper_lifts_the_box_from_a_nominal_plan(strategy: str) -> None:
+    r = run_trial("parallel_gripper", builtin_object("box"), strategy, seed=0)  # type: ignore[arg-type]
+    assert r.success, r
+    assert r.reason is None
+    assert r.lift_height >= LIFT_THRESHOLD
+    assert r.touching_end and r.touching_after_close
+    assert r.sim_time == pytest.approx(1.0 + 1.5 + 1.0 + 1.0, abs=0.011)  # approach, close + settle, lift, hold
+
+
+@pytest.mark.parametrize("strategy", ["S", "C"])
+def test_softhand_lifts_the_apple_from_a_nominal_plan(strategy: str) -> None:
+    r = run_trial("pisa_iit_softhand", builtin_object("apple"), strategy, seed=0)  # type: ignore[arg-type]
+    assert r.success, r
+    assert r.lift_height >= LIFT_THRESHOLD and r.touching_end
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="known limitation of the SoftHand model with the planner's top grasp (docs/experiment_table1.md): the "
+    "fingers close above the 5 cm box and roll it against the wrist stub; it slips out when lifted",
+)
+def test_softhand_lifts_the_box_from_a_nominal_plan() -> None:
+    r = run_trial("pisa_iit_softhand", builtin_object("box"), "S", seed=0)
+    assert r.success, r
+
+
+@pytest.mark.parametrize("hand", ["parallel_gripper", "pisa_iit_softhand"])
+def test_a_plan_moved_10_cm_off_fails_with_a_reason(hand: str) -> None:
+    planner = default_planner()
+    obj = builtin_object("box")
+    plan = planner.plan(PlanRequest(hand=hand, obj=obj, strategy="S"))
+    assert plan.success
+    moved = shift_plan(plan, np.array([0.0, 0.10, 0.0]), planner.ur5)
+    assert moved.success and moved.grasp_pose is not None and plan.grasp_pose is not None
+    assert np.allclose(moved.grasp_pose[:3, 3] - plan.grasp_pose[:3, 3], [0.0, 0.10, 0.0])
+    r = run_trial(hand, obj, "S", seed=0, plan=moved)
+    assert not r.success
+    assert r.reason == "no_contact"
+    assert r.reason in REASONS
+    assert abs(r.lift_height) < 0.01 and not r.touching_end
+
+
+def test_same_seed_same_outcome() -> None:
+    obj = builtin_object("box")
+    kw: dict[str, Any] = {"sigma_r": 0.2, "sigma_t": 0.02}
+    a = run_trial("pisa_iit_softhand", obj, "C", seed=12345, **kw)
+    run_trial("pisa_iit_softhand", builtin_object("apple"), "S", seed=7, **kw)  # something else in between
+    b = run_trial("pisa_iit_softhand", obj, "C", seed=12345, **kw)
+    assert _comparable(a) == _comparable(b)
+    c = run_trial("pisa_iit_softhand", obj, "C", seed=54321, **kw)
+    assert c.perturbation != a.perturbation
+    assert a.seed == 12345 and c.seed == 54321
+
+
+def test_perturbation_draws() -> None:
+    assert Perturbation.draw(3, 0.0, 0.0) == Perturbation(0.0, 0.0, 0.0)
+    p1 = Perturbation.draw(3, 0.1, 0.01)
+    p2 = Perturbation.draw(3, 0.2, 0.02)
+    assert p2.d_yaw == pytest.approx(2 * p1.d_yaw) and p2.dx == pytest.approx(2 * p1.dx)
+    rng = np.random.default_rng(3)
+    assert p1.d_yaw == pytest.approx(0.1 * rng.normal()) and p1.dx == pytest.approx(0.01 * rng.normal())
+    obj = builtin_object("box", x=0.5, y=0.1, yaw=0.3)
+    moved = p1.apply(obj)
+    assert (moved.x, moved.y, moved.yaw) == pytest.approx((0.5 + p1.dx, 0.1 + p1.dy, 0.3 + p1.d_yaw))
+    assert moved.center[2] == pytest.approx(obj.center[2])
+    draws = np.array([[Perturbation.draw(s, 0.2, 0.02).d_yaw for s in range(400)]])
+    assert np.std(draws) == pytest.approx(0.2, rel=0.15)
+
+
+def test_the_simulated_object_is_the_perturbed_one() -> None:
+    """With a large shift the planned grasp misses: the perturbation reaches the simulation."""
+    obj = builtin_object("box")
+    hits = [run_trial("parallel_gripper", obj, "S", seed=s, sigma_t=0.2).reason for s in range(3)]
+    assert "no_contact" in hits
+
+
+def test_an_unreachable_object_fails_in_planning() -> None:
+    r = run_trial("parallel_gripper", builtin_object("box", x=1.5), "S", seed=0)
+    assert not r.success
+    assert r.reason == "unreachable" and r.plan_reasons == ["unreachable"]
+    assert r.sim_time == 0.0 and r.lift_height == 0.0
+
+
+def test_bad_input_raises() -> None:
+    with pytest.raises(InvalidInput):
+        run_trial("parallel_gripper", builtin_object("box"), "S", seed=0, sigma_r=-0.1)
+    with pytest.raises(InvalidInput):
+        RolloutConfig(lift=0.0)
+    with pytest.raises(InvalidInput):
+        RolloutConfig(success_fraction=1.5)
+
+
+def test_shorter_lift_is_judged_against_its_own_threshold() -> None:
+    """The judge uses the configured lift: a 5 cm lift needs 4 cm of rise."""
+    cfg = RolloutConfig(lift=0.05, hold_time=0.2)
+    r = run_trial("parallel_gripper", builtin_object("box"), "S", seed=0, config=cfg)
+    assert r.success and 0.04 <= r.lift_height <= 0.051
+
+
+# -- the validate command ------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def cli() -> typer.Typer:
+    app = typer.Typer(pretty_exceptions_enable=False)
+    app.command("validate")(validate)
+
+    @app.command("noop")
+    def noop() -> None:  # a second command keeps "validate" a named sub-command
+        pass
+
+    return app
+
+
+def test_validate_json(cli: typer.Typer) -> None:
+    args = ["validate", "--hand", "parallel_gripper", "--object", "box", "--strategy", "S", "--trials", "2",
+            "--sigma-r", "0.05", "--sigma-t", "0.005", "--seed", "4", "--json"]  # fmt: skip
+    res = CliRunner().invoke(cli, args)
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    assert data["trials"] == 2 and data["successes"] == sum(o["success"] for o in data["outcomes"])
+    assert len(data["outcomes"]) == 2
+    for o in data["outcomes"]:
+        assert set(o) == {"seed", "success", "reason", "lift_height"}
+    again = json.loads(CliRunner().invoke(cli, args).stdout)
+    assert again["outcomes"] == data["outcomes"]
+
+
+def test_validate_object_file_and_errors(cli: typer.Typer, tmp_path: Path) -> None:
+    spec = tmp_path / "block.json"
+    spec.write_text(json.dumps({"kind": "box", "size": [0.12, 0.05, 0.05], "mass": 0.1}))
+    res = CliRunner().invoke(cli, ["validate", "--hand", "parallel_gripper", "--object", str(spec), "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["object"]["size"] == [0.12, 0.05, 0.05]
+    res = CliRunner().invoke(cli, ["validate", "--hand", "parallel_gripper", "--object", "ball"])
+    assert res.exit_code == 2 and "valid: PATH.json, apple, box, cylinder" in res.output
+    res = CliRunner().invoke(cli, ["validate", "--hand", "no_such_hand", "--object", "box"])
+    assert res.exit_code == 2 and "unknown hand" in res.output
+    res = CliRunner().invoke(cli, ["validate", "--hand", "parallel_gripper", "--object", "box", "--strategy", "X"])
+    assert res.exit_code == 2 and "unknown strategy" in res.output
+
+
+def test_validate_video_without_an_encoder_says_so(
+    cli: typer.Typer, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setitem(sys.modules, "imageio", None)  # import imageio raises ImportError
+    out = tmp_path / "grasp.mp4"
+    res = CliRunner().invoke(cli, ["validate", "--hand", "parallel_gripper", "--object", "box", "--video", str(out)])
+    assert res.exit_code == 2
+    assert "--video needs a video encoder" in res.output and "--frames" in res.output
+    assert res.exception is None or isinstance(res.exception, SystemExit)
+    assert not out.exists()
+
+
+@pytest.mark.skipif(render_unavailable_reason() is not None, reason="no OpenGL backend for offscreen rendering")
+def test_validate_frames(cli: typer.Typer, tmp_path: Path) -> None:
+    import matplotlib.image
+
+    res = CliRunner().invoke(cli, ["validate", "--hand", "parallel_gripper", "--object", "box", "--fps", "4",
+                                   "--frames", str(tmp_path / "frames")])  # fmt: skip
+    if res.exit_code == 2 and "render" in res.output.lower():
+        pytest.skip(f"offscreen rendering unavailable: {res.output}")
+    assert res.exit_code == 0, res.output
+    files = sorted((tmp_path / "frames" / "trial_000").glob("frame_*.png"))
+    assert len(files) == 19  # 4.5 s at 4 frames per second, plus the first
+    first, last = matplotlib.image.imread(files[0]), matplotlib.image.imread(files[-1])
+    assert first.shape[:2] == (480, 640)
+    assert not np.array_equal(first, last)  # the arm moved
+
+
+def test_trial_result_json_round_trip() -> None:
+    r = run_trial("parallel_gripper", builtin_object("box", x=1.5), "C", seed=9)
+    d = json.loads(json.dumps(r.to_json_dict()))
+    assert d["seed"] == 9 and d["perturbation"] == dataclasses.asdict(r.perturbation)
