@@ -357,6 +357,51 @@ def _touching(data: mujoco.MjData, geom: int, hand_geom: NDArray[np.bool_]) -> b
 # ----------------------------------------------------------------------------------------------------------
 
 
+POWER_GRASP_OFFSETS: tuple[tuple[float, float], ...] = (
+    (0.0, -0.015), (0.0, 0.015), (0.0, -0.03), (0.0, 0.03),
+    (-0.01, 0.0), (0.01, 0.0), (-0.01, -0.015), (0.01, -0.015), (-0.01, 0.015), (0.01, 0.015),
+)  # fmt: skip
+"""(x, y) offsets [m] in the hand frame around the automatic placement, tried in order when it is not held."""
+MAX_LIFT_STEPS = 40
+"""How many steps of ``GraspSettings.search_step`` along +z a shifted placement may take to clear the open hand."""
+
+
+def find_power_grasp(
+    hand: HandModel,
+    obj: TableObject | str | Mapping[str, Any],
+    *,
+    center: ArrayLike | None = None,
+    orientation: ArrayLike | None = None,
+    settings: GraspSettings | None = None,
+    app_settings: Settings | None = None,
+) -> Grasp:
+    """A power grasp found in MuJoCo: the automatic placement, else the first nearby placement the hand holds.
+
+    With an explicit ``center`` this is :func:`grasp_object`. Otherwise the automatic placement is tried first;
+    if the hand does not hold the object alone there, the placement is shifted in the palm plane by
+    :data:`POWER_GRASP_OFFSETS` (each raised along +z until it clears the open hand) and the first held grasp
+    is returned. If none holds, the automatic (not held) grasp is returned and says so (``held`` False).
+    """
+    first = grasp_object(hand, obj, center=center, orientation=orientation, settings=settings,
+                         app_settings=app_settings)  # fmt: skip
+    if center is not None or first.held:
+        return first
+    step = (settings or GraspSettings()).search_step
+    for dx, dy in POWER_GRASP_OFFSETS:
+        c = first.initial_center + np.array([dx, dy, 0.0])
+        for _ in range(MAX_LIFT_STEPS):
+            try:
+                grasp = grasp_object(hand, obj, center=c, orientation=orientation, settings=settings,
+                                     app_settings=app_settings)  # fmt: skip
+            except InvalidInput:
+                c = c + np.array([0.0, 0.0, 4 * step])  # overlaps the open hand: move out of the palm
+                continue
+            if grasp.held:
+                return grasp
+            break
+    return first
+
+
 def compute_stiffness_signature(
     hand: HandModel,
     obj: TableObject | str | Mapping[str, Any] = "apple",
@@ -395,7 +440,7 @@ def compute_stiffness_signature(
         )
     pull_settings = pull_settings or PullSettings()
     D = (default_directions() if directions is None else check_directions(directions)) if pull else None
-    grasp = grasp_object(
+    grasp = find_power_grasp(
         hand, obj, center=center, orientation=orientation, settings=grasp_settings, app_settings=app_settings
     )
     mats = grasp_matrices(grasp)
