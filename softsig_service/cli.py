@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -14,8 +12,10 @@ from softsig_service.gl_backend import prepare_mujoco
 
 prepare_mujoco()  # headless EGL by default; must run before anything imports MuJoCo
 
+from softsig_service.cli_support import emit as _emit  # noqa: E402
+from softsig_service.cli_support import errors_to_exit as _errors  # noqa: E402
+from softsig_service.cli_support import parse_object as _object_arg  # noqa: E402
 from softsig_service.config import Settings  # noqa: E402
-from softsig_service.errors import SoftsigError  # noqa: E402
 
 app = typer.Typer(
     help="softsig: closure and stiffness signatures of soft hands, and top-grasp planning.",
@@ -26,20 +26,6 @@ hands_app = typer.Typer(help="The hand library: list, show, close and render han
 app.add_typer(hands_app, name="hands")
 signature_app = typer.Typer(help="Closure and stiffness signatures of a hand.", no_args_is_help=True)
 app.add_typer(signature_app, name="signature")
-
-
-@contextmanager
-def _errors() -> Iterator[None]:
-    """Print a :class:`SoftsigError` as one clear line on stderr and exit with status 2."""
-    try:
-        yield
-    except SoftsigError as exc:
-        typer.echo(f"error: {exc.describe()}", err=True)
-        raise typer.Exit(2) from None
-
-
-def _emit(data: Any, as_json: bool, text: Callable[[], str]) -> None:
-    typer.echo(json.dumps(data, indent=2) if as_json else text())
 
 
 def _write_json(path: Path, data: Any) -> None:
@@ -256,26 +242,6 @@ def _stiffness_object(spec: str) -> Any:
             raise InvalidInput("sphere:R needs a radius in metres", field="object", value=spec) from None
         return sphere(radius, mass=0.1)
     return _object_arg(spec, 0.5, 0.0, 0.0)
-
-
-def _object_arg(spec: str, x: float, y: float, yaw: float) -> Any:
-    """``box|apple|cylinder`` or a path to an object JSON, placed at (x, y, yaw) on the table."""
-    from softsig_service.errors import InvalidInput
-    from softsig_service.planning.objects import BUILTIN_NAMES, builtin_object, object_from_json
-
-    if spec in BUILTIN_NAMES:
-        return builtin_object(spec, x=x, y=y, yaw=yaw)
-    path = Path(spec)
-    if not path.suffix == ".json" or not path.is_file():
-        raise InvalidInput("object must be a built-in name or a JSON file", field="object", value=spec,
-                           choices=[*BUILTIN_NAMES, "PATH.json"])  # fmt: skip
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"object file is not valid JSON: {exc}", field="object", value=spec) from None
-    if isinstance(data, dict):
-        data = {**data, "pose": {**data.get("pose", {}), "x": x, "y": y, "yaw": yaw}}
-    return object_from_json(data)
 
 
 def _floats(text: str, n: int, field: str) -> tuple[float, ...]:

@@ -14,51 +14,17 @@ Errors: a :class:`~softsig_service.errors.SoftsigError` is printed as one line o
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
 
-from softsig_service.errors import InvalidInput, RenderUnavailable, SoftsigError
+from softsig_service.cli_support import errors_to_exit as _errors
+from softsig_service.cli_support import parse_object
+from softsig_service.errors import InvalidInput, RenderUnavailable
 
 FRAME_SIZE = (640, 480)
 """Width and height [px] of recorded frames."""
-
-
-@contextmanager
-def _errors() -> Iterator[None]:
-    """Print a :class:`SoftsigError` as one clear line on stderr and exit with status 2 (as ``cli._errors``)."""
-    try:
-        yield
-    except SoftsigError as exc:
-        typer.echo(f"error: {exc.describe()}", err=True)
-        raise typer.Exit(2) from None
-
-
-def parse_object(spec: str, x: float, y: float, yaw: float) -> Any:
-    """``box | apple | cylinder`` (DESIGN §7) or a path to an object JSON (``object_from_json``), placed at
-    ``(x [m], y [m], yaw [rad])`` on the table. Returns a :class:`~softsig_service.planning.objects.TableObject`."""
-    from softsig_service.planning.objects import BUILTIN_NAMES, builtin_object, object_from_json
-
-    if spec in BUILTIN_NAMES:
-        return builtin_object(spec, x=x, y=y, yaw=yaw)
-    path = Path(spec)
-    if path.suffix != ".json" or not path.is_file():
-        raise InvalidInput(
-            "object must be a built-in name or a JSON file",
-            field="object",
-            value=spec,
-            choices=[*BUILTIN_NAMES, "PATH.json"],
-        )
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"object file is not valid JSON: {exc}", field="object", value=spec) from None
-    if isinstance(data, dict):
-        data = {**data, "pose": {**data.get("pose", {}), "x": x, "y": y, "yaw": yaw}}
-    return object_from_json(data)
 
 
 class _Recorder:

@@ -1,0 +1,46 @@
+"""Helpers shared by the command-line modules: error reporting, output and the object argument."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from softsig_service.errors import InvalidInput, SoftsigError
+
+
+@contextmanager
+def errors_to_exit() -> Iterator[None]:
+    """Print a :class:`SoftsigError` as one clear line on stderr and exit with status 2."""
+    try:
+        yield
+    except SoftsigError as exc:
+        typer.echo(f"error: {exc.describe()}", err=True)
+        raise typer.Exit(2) from None
+
+
+def emit(data: Any, as_json: bool, text: Callable[[], str]) -> None:
+    typer.echo(json.dumps(data, indent=2) if as_json else text())
+
+
+def parse_object(spec: str, x: float, y: float, yaw: float) -> Any:
+    """``box|apple|cylinder`` or a path to an object JSON, placed at (x, y, yaw) on the table."""
+    from softsig_service.planning.objects import BUILTIN_NAMES, builtin_object, object_from_json
+
+    if spec in BUILTIN_NAMES:
+        return builtin_object(spec, x=x, y=y, yaw=yaw)
+    path = Path(spec)
+    if not path.suffix == ".json" or not path.is_file():
+        raise InvalidInput("object must be a built-in name or a JSON file", field="object", value=spec,
+                           choices=[*BUILTIN_NAMES, "PATH.json"])  # fmt: skip
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InvalidInput(f"object file is not valid JSON: {exc}", field="object", value=spec) from None
+    if isinstance(data, dict):
+        data = {**data, "pose": {**data.get("pose", {}), "x": x, "y": y, "yaw": yaw}}
+    return object_from_json(data)
