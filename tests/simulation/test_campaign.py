@@ -35,8 +35,17 @@ TINY = CampaignSpec(hand="pisa_iit_softhand", conditions=((0.1, 0.01),), trials=
 OUTCOME_KEYS = ("key", "seed", "success", "reason", "lift_height", "max_lift", "perturbation")
 
 
+def _rounded(value: Any) -> Any:
+    if isinstance(value, float):
+        return round(value, 9)
+    if isinstance(value, dict):
+        return {k: _rounded(v) for k, v in value.items()}
+    return value
+
+
 def _outcomes(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    return [{k: r[k] for k in OUTCOME_KEYS} for r in records]
+    """The outcome fields, floats to 1e-9: a worker process may differ from this one in the last bits."""
+    return [{k: _rounded(r[k]) for k in OUTCOME_KEYS} for r in records]
 
 
 def _lines(path: Path) -> list[str]:
