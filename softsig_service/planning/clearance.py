@@ -73,16 +73,18 @@ class HandClearance:
         """
         centres = self._centres @ T_world_hand[:3, :3].T + T_world_hand[:3, 3]
         bound_table = centres[:, 2] - self._table_height - self._radii
-        d_table = self._nearest(T_world_hand, bound_table, self._table, self._table_tf)
+        poses: dict[int, coal.Transform3s] = {}  # shape poses, built once per call for both queries
+        d_table = self._nearest(T_world_hand, poses, bound_table, self._table, self._table_tf)
         d_obj = float("inf")
         if self._object is not None:
             gap = np.linalg.norm(centres - self._object_centre, axis=1) - self._radii - self._object_radius
-            d_obj = self._nearest(T_world_hand, gap, *self._object)
+            d_obj = self._nearest(T_world_hand, poses, gap, *self._object)
         return d_table, d_obj
 
     def _nearest(
         self,
         T_world_hand: NDArray[np.float64],
+        poses: dict[int, coal.Transform3s],
         lower_bounds: NDArray[np.float64],
         other: coal.CollisionGeometry,
         other_tf: coal.Transform3s,
@@ -92,8 +94,10 @@ class HandClearance:
             if lower_bounds[k] >= best:
                 break
             geom, T_shape = self._shapes[k]
-            res = coal.DistanceResult()
-            best = min(best, coal.distance(geom, _tf(T_world_hand @ T_shape), other, other_tf, self._req, res))
+            tf = poses.get(int(k))
+            if tf is None:
+                tf = poses[int(k)] = _tf(T_world_hand @ T_shape)
+            best = min(best, coal.distance(geom, tf, other, other_tf, self._req, coal.DistanceResult()))
         return best
 
     def descend(
@@ -103,7 +107,7 @@ class HandClearance:
         max_travel: float,
         margin: float,
         *,
-        tolerance: float = 1e-4,
+        tolerance: float = 5e-4,
         max_steps: int = 200,
     ) -> Descent:
         """Advance ``T_start`` along the unit ``direction`` (world) until ``margin`` [m] from table or object."""
