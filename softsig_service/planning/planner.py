@@ -309,7 +309,7 @@ class Planner:
         """Descend along the approach from high above to the grasp pose; set the pre-grasp."""
         direction = c.T[:3, 2]
         T_top = c.T.copy()
-        T_top[:3, 3] += direction * ((c.T[:3, 3] - center) @ direction - START_HEIGHT)
+        T_top[:3, 3] -= direction * ((c.T[:3, 3] - center) @ direction + START_HEIGHT)
         d0 = min(clearance.distances(T_top))
         if d0 < req.margin:
             c.reasons.append("collision:object")  # even the start above the object is blocked

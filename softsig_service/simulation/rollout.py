@@ -133,8 +133,9 @@ class Perturbation:
         return Perturbation(d_yaw, dx, dy)
 
     def apply(self, obj: TableObject) -> TableObject:
-        """The object moved by this perturbation, resting on the table."""
-        return obj.with_pose(obj.x + self.dx, obj.y + self.dy, obj.yaw + self.d_yaw)
+        """The object moved by this perturbation (an explicit centre height is kept; else it rests on the table)."""
+        # keeps an explicit centre height (an object held above the table stays at that height)
+        return dataclasses.replace(obj, x=obj.x + self.dx, y=obj.y + self.dy, yaw=obj.yaw + self.d_yaw)
 
     def to_json_dict(self) -> dict[str, float]:
         """``{"d_yaw": rad, "dx": m, "dy": m}``."""

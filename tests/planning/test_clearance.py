@@ -72,3 +72,26 @@ def test_descent_stops_at_the_margin_on_the_first_obstacle() -> None:
     # a free path reports the travel limit
     short = hc.descend(T, down, max_travel=0.05, margin=0.005)
     assert short.limited_by == "travel" and short.travel == 0.05
+
+
+def test_the_descent_starts_half_a_metre_above_the_object_for_both_strategies() -> None:
+    """The start of the approach is START_HEIGHT above the object's centre along the approach, whatever the
+    flange's offset from the centre (strategy C's NLP returns the flange below the anchor)."""
+    from softsig_service.planning.planner import START_HEIGHT, Planner, PlanRequest
+
+    planner = Planner()
+    obj = builtin_object("box").with_pose(0.5, 0.1, 0.4)
+    seen: list[float] = []
+    original = HandClearance.descend
+
+    def spy(self: HandClearance, T_start: np.ndarray, direction: np.ndarray, *args: object, **kw: object):  # type: ignore[no-untyped-def]
+        seen.append(float((T_start[:3, 3] - obj.center) @ direction))
+        return original(self, T_start, direction, *args, **kw)  # type: ignore[arg-type]
+
+    HandClearance.descend = spy  # type: ignore[method-assign]
+    try:
+        for strategy in ("S", "C"):
+            planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy=strategy))  # type: ignore[arg-type]
+    finally:
+        HandClearance.descend = original  # type: ignore[method-assign]
+    assert seen and all(abs(s + START_HEIGHT) < 1e-9 for s in seen)
