@@ -796,31 +796,29 @@ def grasp_stiffness_from_matrices(
     )
 
 
-def _actuator_moments(model: mujoco.MjModel, data: mujoco.MjData) -> FloatArray:
-    out = np.zeros((model.nu, model.nv))
-    if model.nu:
+def _dense(rows: int, cols: int, values: Any, rownnz: Any, rowadr: Any, colind: Any) -> FloatArray:
+    """A dense (rows, cols) matrix from MuJoCo's compressed sparse-row arrays."""
+    out = np.zeros((rows, cols))
+    if rows:
         mujoco.mju_sparse2dense(
             out,
-            np.asarray(data.actuator_moment, dtype=np.float64),
-            np.asarray(data.moment_rownnz, dtype=np.int32),
-            np.asarray(data.moment_rowadr, dtype=np.int32),
-            np.asarray(data.moment_colind, dtype=np.int32),
+            np.asarray(values, dtype=np.float64),
+            np.asarray(rownnz, dtype=np.int32),
+            np.asarray(rowadr, dtype=np.int32),
+            np.asarray(colind, dtype=np.int32),
         )
     return out
+
+
+def _actuator_moments(model: mujoco.MjModel, data: mujoco.MjData) -> FloatArray:
+    """Dense actuator moment arms (nu, nv) from MuJoCo's sparse ``actuator_moment``."""
+    return _dense(model.nu, model.nv, data.actuator_moment, data.moment_rownnz, data.moment_rowadr,
+                  data.moment_colind)  # fmt: skip
 
 
 def _tendon_jacobian(model: mujoco.MjModel, data: mujoco.MjData) -> FloatArray:
     """Dense tendon Jacobian (ntendon, nv) from MuJoCo's sparse ``ten_J``."""
-    out = np.zeros((model.ntendon, model.nv))
-    if model.ntendon:
-        mujoco.mju_sparse2dense(
-            out,
-            np.asarray(data.ten_J, dtype=np.float64),
-            np.asarray(model.ten_J_rownnz, dtype=np.int32),
-            np.asarray(model.ten_J_rowadr, dtype=np.int32),
-            np.asarray(model.ten_J_colind, dtype=np.int32),
-        )
-    return out
+    return _dense(model.ntendon, model.nv, data.ten_J, model.ten_J_rownnz, model.ten_J_rowadr, model.ten_J_colind)
 
 
 def _actuator_length_stiffness(model: mujoco.MjModel, data: mujoco.MjData, a: int) -> tuple[float, bool]:
