@@ -90,6 +90,7 @@ from softsig_service.signatures.stiffness import (
     grasp_matrix,
     grasp_stiffness_terms,
 )
+from softsig_service.simulation.object_geom import set_object_shape
 
 FloatArray = NDArray[np.float64]
 
@@ -356,23 +357,7 @@ def _add_object(spec: mujoco.MjSpec, obj: TableObject) -> None:
         "conaffinity": contype or 1,
         "rgba": [0.85, 0.25, 0.2, 1.0],
     }
-    if prim.kind == "mesh":
-        assert prim.vertices is not None and prim.faces is not None
-        spec.add_mesh(
-            name=f"{OBJECT_BODY}_mesh",
-            uservert=np.asarray(prim.vertices, dtype=np.float64).reshape(-1).tolist(),
-            userface=np.asarray(prim.faces, dtype=np.int32).reshape(-1).tolist(),
-        )
-        body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=f"{OBJECT_BODY}_mesh", **geom_kwargs)
-        return
-    gtype = {
-        "box": mujoco.mjtGeom.mjGEOM_BOX,
-        "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
-        "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
-        "ellipsoid": mujoco.mjtGeom.mjGEOM_ELLIPSOID,
-    }[prim.kind]
-    size = list(prim.size) + [0.0] * (3 - len(prim.size))
-    body.add_geom(type=gtype, size=size, **geom_kwargs)
+    set_object_shape(spec, body.add_geom(**geom_kwargs), prim, f"{OBJECT_BODY}_mesh")
 
 
 def compile_with_object(hand: HandModel, obj: TableObject, settings: Settings | None = None) -> HandModel:

@@ -59,6 +59,7 @@ from softsig_service.geometry.transforms import matrix_to_quat
 from softsig_service.hands.manifest import load_manifest
 from softsig_service.hands.model import HandModel, compile_hand, resolve_hand_path
 from softsig_service.planning.objects import TableObject
+from softsig_service.simulation.object_geom import set_object_shape
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -273,22 +274,7 @@ def _add_object(spec: mujoco.MjSpec, obj: TableObject) -> None:
     body = spec.worldbody.add_body(name=OBJECT_BODY)
     body.add_freejoint(name="object_free")
     geom = body.add_geom(name="object_geom")
-    if prim.kind == "mesh":
-        assert prim.vertices is not None and prim.faces is not None
-        mesh = spec.add_mesh(name="object_mesh")
-        mesh.uservert = np.asarray(prim.vertices, dtype=np.float64).ravel().tolist()
-        mesh.userface = np.asarray(prim.faces, dtype=np.int64).ravel().tolist()
-        geom.type = mujoco.mjtGeom.mjGEOM_MESH
-        geom.meshname = "object_mesh"
-    else:
-        geom.type = {
-            "box": mujoco.mjtGeom.mjGEOM_BOX,
-            "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
-            "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
-            "ellipsoid": mujoco.mjtGeom.mjGEOM_ELLIPSOID,
-        }[prim.kind]
-        size = list(prim.size) + [0.0] * (3 - len(prim.size))
-        geom.size = size
+    set_object_shape(spec, geom, prim, "object_mesh")
     geom.mass = obj.mass
     geom.friction = [obj.friction, OBJECT_TORSIONAL_FRICTION, OBJECT_ROLLING_FRICTION]
     geom.condim = 4
