@@ -67,7 +67,7 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -77,6 +77,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput, SolverError
+from softsig_service.geometry.transforms import matrix_to_quat, quat_normalize, quat_to_matrix
 from softsig_service.hands.closure import prepare_data, run_closure, simulate_closure
 from softsig_service.hands.manifest import PostureClosure
 from softsig_service.hands.model import HandModel, compile_hand
@@ -348,7 +349,7 @@ def _add_object(spec: mujoco.MjSpec, obj: TableObject) -> None:
     geom_kwargs: dict[str, Any] = {
         "name": f"{OBJECT_BODY}_geom",
         "pos": T[:3, 3].tolist(),
-        "quat": _mat2quat(T[:3, :3]).tolist(),
+        "quat": matrix_to_quat(T[:3, :3]).tolist(),
         "mass": float(obj.mass),
         "friction": [float(obj.friction), 0.005, 0.0001],
         "condim": 3,
@@ -412,7 +413,7 @@ def grasp_object(
     """
     settings = settings or GraspSettings()
     the_obj = resolve_object(obj)
-    quat = _unit_quat(orientation if orientation is not None else TOP_GRASP_ORIENTATION, "orientation")
+    quat = quat_normalize(orientation if orientation is not None else TOP_GRASP_ORIENTATION, "orientation")
     explicit = center is not None
     if explicit:
         c = np.asarray(center, dtype=np.float64).reshape(-1)
@@ -432,11 +433,11 @@ def grasp_object(
     data = prepare_data(full, model)
     R = data.xmat[full.mount_body].reshape(3, 3).copy()
     p0 = data.xpos[full.mount_body].copy()
-    R_obj = R @ _quat2mat(quat)
+    R_obj = R @ quat_to_matrix(quat)
 
     def put(center_hand: FloatArray) -> None:
         data.qpos[qadr : qadr + 3] = p0 + R @ center_hand
-        data.qpos[qadr + 3 : qadr + 7] = _mat2quat(R_obj)
+        data.qpos[qadr + 3 : qadr + 7] = matrix_to_quat(R_obj)
         data.qvel[:] = 0.0
 
     if explicit:
@@ -862,27 +863,3 @@ def _joints_at_limit(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[str, .
     ids = np.asarray(data.efc_id[: data.nefc])
     sel = (types == int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT)) & (np.abs(force) > 0.0)
     return tuple(sorted({model.joint(int(j)).name for j in ids[sel]}))
-
-
-# ----------------------------------------------------------------------------------------------------------
-# quaternions (wxyz, MuJoCo's order)
-# ----------------------------------------------------------------------------------------------------------
-
-
-def _unit_quat(q: ArrayLike | Sequence[float], name: str) -> FloatArray:
-    a = np.asarray(q, dtype=np.float64).reshape(-1)
-    if a.size != 4 or not np.all(np.isfinite(a)) or np.linalg.norm(a) < 1e-9:
-        raise InvalidInput("expected a non-zero quaternion w, x, y, z", field=name, value=a.tolist())
-    return a / np.linalg.norm(a)
-
-
-def _quat2mat(q: FloatArray) -> FloatArray:
-    out = np.zeros(9)
-    mujoco.mju_quat2Mat(out, np.asarray(q, dtype=np.float64))
-    return out.reshape(3, 3)
-
-
-def _mat2quat(R: FloatArray) -> FloatArray:
-    out = np.zeros(4)
-    mujoco.mju_mat2Quat(out, np.ascontiguousarray(R, dtype=np.float64).reshape(9))
-    return out
