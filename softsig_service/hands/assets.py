@@ -31,7 +31,8 @@ class ModelSource:
     model_dir: Path
 
 
-def _check_relative(ref: str, field: str) -> PurePosixPath:
+def check_relative_path(ref: str, field: str) -> PurePosixPath:
+    """``ref`` as a relative POSIX path, or :class:`UnsafePath` if it is absolute, a URL or climbs out with ``..``."""
     if ref.startswith(("file:", "http:", "https:", "/", "\\")) or (len(ref) > 1 and ref[1] == ":"):
         raise UnsafePath("asset paths must be relative to the hand's folder", field=field, value=ref)
     rel = PurePosixPath(ref.replace("\\", "/"))
@@ -75,7 +76,7 @@ def _parse(text: str, field: str) -> ET.Element:
 def _resolve_package(folder: Path, ref: str, field: str) -> Path:
     """``package://PKG/a/b.stl`` -> the first of ``a/b.stl`` and ``PKG/a/b.stl`` inside ``folder``."""
     body = ref[len("package://") :]
-    parts = PurePosixPath(_check_relative(body, field))
+    parts = PurePosixPath(check_relative_path(body, field))
     candidates = [PurePosixPath(*parts.parts[1:]), parts] if len(parts.parts) > 1 else [parts]
     for cand in candidates:
         path = _inside(folder, cand, field, ref)
@@ -118,7 +119,7 @@ def load_urdf_source(path: Path, limits: ModelLimits, hand_root: Path | None = N
         if ref.startswith("package://"):
             file = _resolve_package(folder, ref, field)
         else:
-            rel = _check_relative(ref, field)
+            rel = check_relative_path(ref, field)
             file = (path.parent / rel).resolve()
             if not file.is_relative_to(folder):
                 raise UnsafePath("asset path resolves outside the hand's folder", field=field, value=ref)
@@ -164,7 +165,7 @@ def check_mjcf_paths(path: Path, limits: ModelLimits, *, _seen: set[Path] | None
     for comp in root.iter("compiler"):
         for attr in _DIR_ATTRS:
             if comp.get(attr):
-                dirs[attr] = _check_relative(comp.get(attr, ""), f"compiler.{attr}")
+                dirs[attr] = check_relative_path(comp.get(attr, ""), f"compiler.{attr}")
     total = len(text)
     count = 0
     for k, el in enumerate(root.iter()):
@@ -173,7 +174,7 @@ def check_mjcf_paths(path: Path, limits: ModelLimits, *, _seen: set[Path] | None
             if ref is None:
                 continue
             field = f"model: <{el.tag}> #{k} {attr}"
-            rel = _check_relative(ref, field)
+            rel = check_relative_path(ref, field)
             if el.tag == "include":
                 inc = _inside(folder, rel, field, ref)
                 if inc in seen:

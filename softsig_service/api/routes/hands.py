@@ -26,7 +26,7 @@ from softsig_service.api.jobs import inspect_hand
 from softsig_service.api.routes.common import READ, WRITE, problem
 from softsig_service.api.schemas import HAND_NAME_PATTERN, HandList, HandOut
 from softsig_service.errors import Conflict, InvalidHandModel, InvalidManifest, ModelTooLarge, UnsafePath
-from softsig_service.hands.assets import _check_relative
+from softsig_service.hands.assets import check_relative_path
 from softsig_service.hands.manifest import HandManifest, manifest_from_dict
 from softsig_service.registry import repository as repo
 
@@ -83,7 +83,7 @@ def _parse_manifest(data: bytes) -> HandManifest:
 
 
 def _relative(ref: str, field: str) -> str:
-    rel = _check_relative(ref, field)
+    rel = check_relative_path(ref, field)
     parts = [p for p in rel.parts if p not in ("", ".")]
     if not parts:
         raise UnsafePath("a file path is empty", field=field, value=ref)
