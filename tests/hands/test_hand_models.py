@@ -78,7 +78,7 @@ def test_surface_points_are_on_the_hand_and_move_with_it(settings: Settings) -> 
     hand = load_hand("pisa_iit_softhand", settings)
     traj = simulate_closure(hand, surface_points=800)
     assert traj.surface is not None
-    assert 600 <= traj.surface.shape[1] <= 1200
+    assert 600 <= traj.surface.shape[1] <= 1600  # ~800 requested; every one of the 50+ geoms gets a few
     moved = np.linalg.norm(traj.surface[-1] - traj.surface[0], axis=1)
     assert moved.max() > 0.05  # fingertip surfaces travel several centimetres
     assert np.mean(moved > 0.005) > 0.15  # the fingers move (bracket, palm and wrist, most of the area, stay)
@@ -94,9 +94,18 @@ def test_gravity_option_changes_the_closure(settings: Settings) -> None:
 # --- adaptivity: one finger blocked at its proximal link ---------------------------------------------------
 
 ADAPTIVE_CASES = {
-    # hand: (proximal body, its distance along the link [m], proximal joint, distal joint, other fingers)
-    "pisa_iit_softhand": ("index_prox", 0.004, "index_prox_1", "index_dist_1", ("middle", "ring", "little")),
-    "sdm_hand": ("f1_proximal", 0.03, "f1_proximal", "f1_distal", ("f2", "f3", "f4")),
+    # hand: (proximal body, a point on its link axis and the flexion direction, both in the body frame [m],
+    #        index of the geom size that is its half-thickness, proximal joint, distal joint, other fingers)
+    "pisa_iit_softhand": (
+        "index_prox_roll",
+        (0.006, 0.0, 0.0),
+        (0.0, 0.0, 1.0),
+        2,
+        "index_prox_1",
+        "index_dist_1",
+        ("middle", "ring", "little"),
+    ),
+    "sdm_hand": ("f1_proximal", (0.0, 0.0, 0.03), (0.0, 1.0, 0.0), 0, "f1_proximal", "f1_distal", ("f2", "f3", "f4")),
 }
 
 
@@ -119,7 +128,7 @@ def _close(hand: HandModel) -> dict[str, float]:
 
 @pytest.mark.parametrize("name", sorted(ADAPTIVE_CASES))
 def test_blocked_finger_keeps_wrapping_and_others_close_as_in_free_space(name: str, settings: Settings) -> None:
-    prox_body, along, prox_joint, dist_joint, others = ADAPTIVE_CASES[name]
+    prox_body, along, flexion, size_index, prox_joint, dist_joint, others = ADAPTIVE_CASES[name]
     free_hand = load_hand(name, settings)
     free = _close(free_hand)
 
@@ -127,9 +136,9 @@ def test_blocked_finger_keeps_wrapping_and_others_close_as_in_free_space(name: s
     model = free_hand.model
     data = prepare_data(free_hand, copy.copy(model))
     body = model.body(prox_body).id
-    radius = float(model.geom_size[model.body_geomadr[body], 0])
-    centre = data.xpos[body] + data.xmat[body].reshape(3, 3) @ np.array([0.0, 0.0, along])
-    towards = data.xmat[body].reshape(3, 3) @ np.array([0.0, 1.0, 0.0])  # flexion curls toward local +y
+    radius = float(model.geom_size[model.body_geomadr[body], size_index])
+    centre = data.xpos[body] + data.xmat[body].reshape(3, 3) @ np.array(along)
+    towards = data.xmat[body].reshape(3, 3) @ np.array(flexion)  # the direction the link flexes toward
 
     def add_obstacle(spec: mujoco.MjSpec) -> None:
         spec.worldbody.add_geom(
@@ -147,5 +156,11 @@ def test_blocked_finger_keeps_wrapping_and_others_close_as_in_free_space(name: s
     assert blocked[dist_joint] > 0.7 * free[dist_joint], "the distal joints keep closing around the obstacle"
     for other in others:
         for joint, angle in free.items():
-            if joint.startswith(other + "_"):
+            if not joint.startswith(other + "_"):
+                continue
+            if joint.endswith("_abd"):
+                # the tendon length the blocked finger does not take goes partly into the abductions, the only
+                # joints of a closed free hand short of their limits: they turn at least as far as in free space
+                assert blocked[joint] * np.sign(angle) >= abs(angle) - 0.01, joint
+            else:
                 assert blocked[joint] == pytest.approx(angle, abs=0.08), joint
