@@ -85,7 +85,8 @@ def main() -> None:
         print(f"{name:<32}{np.median(t):>12.3f}{np.percentile(t, 95):>10.3f}{repeats:>9d}")
     cs = compute_closure_signature(traj, "ellipsoid")
     print(
-        f"ellipsoid CS: axis {np.round(cs.axis, 3).tolist()}, magnitude {cs.magnitude:.3f}, "
+        f"ellipsoid CS ({cs.params['criterion']}): axis {np.round(cs.axis, 3).tolist()}, "
+        f"magnitude {cs.magnitude:.4g} [{cs.extras['magnitude_unit']}], "
         f"distinctness {cs.distinctness:.2f}, iterations {cs.extras['solver']['initial']['iterations']}"
         f"/{cs.extras['solver']['final']['iterations']}"
     )

@@ -135,16 +135,27 @@ def signature_closure(
         Path | None, typer.Option("--markers", help="tracked markers instead: CSV (time,point,x,y,z) or JSON")
     ] = None,
     method: Annotated[str, typer.Option(help="ellipsoid | pca | mesh")] = "ellipsoid",
+    criterion: Annotated[
+        str,
+        typer.Option(
+            help="ellipsoid method: absolute (change of the half-width [m], the default) | relative (that change "
+            "/ the initial half-width); ignored by pca and mesh"
+        ),
+    ] = "absolute",
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
     plot: Annotated[Path | None, typer.Option("--plot", help="PNG/PDF/SVG of points, ellipsoids and the CS")] = None,
 ) -> None:
-    """Compute a hand's closure signature (CS) from a simulated closure or from tracked markers."""
+    """Compute a hand's closure signature (CS) from a simulated closure or from tracked markers.
+
+    Everything is in the hand frame; the ellipsoid criterion is in the JSON's ``params.criterion``.
+    """
     from softsig_service.errors import InvalidInput
-    from softsig_service.signatures.closure import METHODS, compute_closure_signature
+    from softsig_service.signatures.closure import METHODS, check_criterion, compute_closure_signature
 
     with _errors():
         if method not in METHODS:
             raise InvalidInput("unknown closure-signature method", field="method", value=method, choices=METHODS)
+        the_criterion = check_criterion(criterion)
         if (hand is None) == (markers is None):
             raise InvalidInput("give either a hand or --markers FILE", field="hand")
         if markers is not None:
@@ -157,7 +168,7 @@ def signature_closure(
 
             assert hand is not None
             traj = simulate_closure(load_hand(hand, Settings()), surface_points=None if method == "mesh" else 0)
-        cs = compute_closure_signature(traj, method)
+        cs = compute_closure_signature(traj, method, criterion=the_criterion)
         if plot is not None:
             from softsig_service.signatures.plot import plot_closure_signature
 
@@ -166,8 +177,9 @@ def signature_closure(
 
         def text() -> str:
             ax = ", ".join(f"{v:+.3f}" for v in cs.axis)
+            how = f"{method}, {cs.params['criterion']} criterion" if "criterion" in cs.params else method
             lines = [
-                f"{traj.hand}: closure signature ({method}) in the hand frame",
+                f"{traj.hand}: closure signature ({how}) in the hand frame",
                 f"  axis        ({ax})",
                 f"  anchor      ({', '.join(f'{v:.4f}' for v in cs.anchor)}) m",
                 f"  magnitude   {cs.magnitude:+.4f}  [{data['extras'].get('magnitude_unit', '')}]",
@@ -268,6 +280,11 @@ def plan(
         str | None, typer.Option("--current-q", help="current UR5 joints q1,...,q6 [rad] (default: home)")
     ] = None,
     closing_axis: Annotated[str, typer.Option(help="object axis the CS closes across: minor | major")] = "minor",
+    cs_method: Annotated[str, typer.Option("--cs-method", help="ellipsoid | pca | mesh")] = "ellipsoid",
+    criterion: Annotated[str, typer.Option("--criterion", help="ellipsoid CS: absolute | relative")] = "absolute",
+    placement: Annotated[
+        str, typer.Option("--placement", help="open_centre | grasp_centre | previous (hand point over the object)")
+    ] = "open_centre",
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
 ) -> None:
     """Plan a UR5 top grasp of an object on the table with strategy S or C."""
@@ -278,6 +295,7 @@ def plan(
         request = PlanRequest(
             hand=hand, obj=_object_arg(obj, x, y, yaw), strategy=strategy,  # type: ignore[arg-type]
             current_q=q, closing_axis=closing_axis,  # type: ignore[arg-type]
+            cs_method=cs_method, cs_criterion=criterion, placement=placement,  # type: ignore[arg-type]
         )  # fmt: skip
         result = Planner().plan(request)
         data = result.to_json_dict()

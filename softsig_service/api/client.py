@@ -152,13 +152,20 @@ class SoftsigClient:
     # -- signatures -----------------------------------------------------------------------------------------
 
     def compute_closure_signature(
-        self, hand: str, method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid", *, if_match: str | None = None
+        self,
+        hand: str,
+        method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid",
+        *,
+        criterion: Literal["absolute", "relative"] = "absolute",
+        if_match: str | None = None,
     ) -> SignatureOut:
-        """Simulate the hand's closure, compute its closure signature and store it as a new version."""
+        """Simulate the hand's closure, compute its closure signature (hand frame) and store it as a new version.
+
+        ``criterion`` is the ellipsoid method's: "absolute" (deltas [m], the default) or "relative".
+        """
         headers = {"If-Match": if_match} if if_match else {}
-        r = self.request(
-            "POST", f"/v1/hands/{hand}/signatures", json={"kind": "closure", "method": method}, headers=headers
-        )
+        body = {"kind": "closure", "method": method, "criterion": criterion}
+        r = self.request("POST", f"/v1/hands/{hand}/signatures", json=body, headers=headers)
         return SignatureOut.model_validate(r.json())
 
     def compute_stiffness_signature(self, hand: str, obj: Mapping[str, Any]) -> JobOut:
@@ -172,14 +179,16 @@ class SoftsigClient:
         markers: FileSpec,
         method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid",
         *,
+        criterion: Literal["absolute", "relative"] = "absolute",
         strict_points: bool = True,
     ) -> SignatureOut:
-        """Upload tracked markers (.csv ``time,point,x,y,z`` or trajectory .json) and store the CS from them."""
+        """Upload tracked markers (.csv ``time,point,x,y,z`` [s, m, hand frame] or trajectory .json) and store the
+        CS from them; ``criterion`` is the ellipsoid method's ("absolute" [m], the default, or "relative")."""
         r = self.request(
             "POST",
             f"/v1/hands/{hand}/signatures/markers",
             files={"file": _file(markers)},
-            data={"method": method, "strict_points": "true" if strict_points else "false"},
+            data={"method": method, "criterion": criterion, "strict_points": "true" if strict_points else "false"},
         )
         return SignatureOut.model_validate(r.json())
 

@@ -553,21 +553,26 @@ def inspect_hand(manifest_path: str, limits: ModelLimits) -> dict[str, Any]:
     return dict(to_jsonable(info))
 
 
-def closure_signature(manifest_path: str, limits: ModelLimits, method: str) -> dict[str, Any]:
-    """Simulate the hand's free closure and compute its closure signature by ``method`` (hand frame)."""
+def closure_signature(
+    manifest_path: str, limits: ModelLimits, method: str, criterion: str = "absolute"
+) -> dict[str, Any]:
+    """Simulate the hand's free closure and compute its closure signature by ``method`` (hand frame);
+    ``criterion`` is the ellipsoid method's ("absolute" [m] or "relative")."""
     from softsig_service.hands.closure import simulate_closure
     from softsig_service.hands.summary import closure_summary
     from softsig_service.signatures.closure import compute_closure_signature
 
     hand = _compile(manifest_path, limits)
     traj = simulate_closure(hand, surface_points=None if method == "mesh" else 0)
-    cs = compute_closure_signature(traj, method)  # type: ignore[arg-type]
+    cs = compute_closure_signature(traj, method, criterion=criterion)  # type: ignore[arg-type]
     return {"signature": to_jsonable(cs.to_json_dict()), "closure": to_jsonable(closure_summary(traj))}
 
 
-def markers_signature(text: str, fmt: str, method: str, expected_points: list[str] | None, hand: str) -> dict[str, Any]:
+def markers_signature(
+    text: str, fmt: str, method: str, expected_points: list[str] | None, hand: str, criterion: str = "absolute"
+) -> dict[str, Any]:
     """Parse uploaded marker trajectories (CSV ``time,point,x,y,z`` or trajectory JSON; hand frame, metres,
-    seconds) and compute the closure signature by ``method``."""
+    seconds) and compute the closure signature by ``method`` (``criterion``: the ellipsoid method's)."""
     from softsig_service.hands.summary import closure_summary
     from softsig_service.signatures.closure import compute_closure_signature
     from softsig_service.signatures.markers import parse_markers_csv, parse_markers_json
@@ -576,7 +581,7 @@ def markers_signature(text: str, fmt: str, method: str, expected_points: list[st
         traj = parse_markers_csv(text, hand=hand, expected_points=expected_points)
     else:
         traj = parse_markers_json(text, expected_points=expected_points)
-    cs = compute_closure_signature(traj, method)  # type: ignore[arg-type]
+    cs = compute_closure_signature(traj, method, criterion=criterion)  # type: ignore[arg-type]
     return {"signature": to_jsonable(cs.to_json_dict()), "closure": to_jsonable(closure_summary(traj))}
 
 
@@ -629,8 +634,10 @@ def render_plan_png(plan: dict[str, Any], manifest_path: str | None) -> bytes:
         if manifest_path is not None:
             from softsig_service.planning.planner import planning_model
 
-            method = str((plan.get("solver") or {}).get("cs_method", "ellipsoid"))
-            model = planning_model(manifest_path, method)
+            solver = plan.get("solver") or {}
+            method = str(solver.get("cs_method", "ellipsoid"))
+            criterion = "relative" if solver.get("cs_criterion") == "relative" else "absolute"
+            model = planning_model(manifest_path, method, None, criterion)
             pts = model.points_open @ Rg.T + p
             if len(pts) >= 3:
                 hull = convex_hull_2d(pts[:, :2])

@@ -221,11 +221,22 @@ class HandList(Out):
 # ----------------------------------------------------------------------------------------------------------
 
 
+ClosureCriterion = Literal["absolute", "relative"]
+"""The ellipsoid method's criterion (``softsig_service.signatures.closure.CRITERIA``; kept literal here so that
+this module imports nothing heavy)."""
+CRITERION_DESCRIPTION = (
+    "ellipsoid method only: 'absolute' (default) elects the axis whose half-width changes most in metres, "
+    "delta_k = a_k(T) - a_k(0) [m]; 'relative' the one whose half-width changes most relative to its initial "
+    "length, delta_k / a_k(0). Ignored (and not stored) for pca and mesh."
+)
+
+
 class ClosureSignatureIn(Strict):
     """Compute the closure signature from a simulated free closure of the hand (DESIGN §4)."""
 
     kind: Literal["closure"]
     method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid"
+    criterion: ClosureCriterion = Field("absolute", description=CRITERION_DESCRIPTION)
 
 
 class StiffnessSignatureIn(Strict):
@@ -239,12 +250,14 @@ SignatureIn = Annotated[ClosureSignatureIn | StiffnessSignatureIn, Field(discrim
 
 
 class SignatureSummary(Out):
-    """One stored signature version."""
+    """One stored signature version. ``criterion`` is the ellipsoid closure signature's criterion ("absolute":
+    deltas in metres, "relative": dimensionless); null for other methods and kinds."""
 
     hand: str
     version: int
     kind: Literal["closure", "stiffness"] | str
     method: str
+    criterion: ClosureCriterion | None = None
     source: Literal["simulation", "markers"] | str
     hand_revision: int
     etag: str
@@ -285,6 +298,14 @@ class PlanIn(Strict):
     approach_distance: float = Field(0.10, ge=0.0, le=0.5, description="pre-grasp distance along the approach [m]")
     margin: float = Field(0.005, ge=0.0, le=0.05, description="clearance kept from table and object [m]")
     cs_method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid"
+    cs_criterion: Literal["absolute", "relative"] = Field(
+        "absolute", description="ellipsoid CS criterion: absolute [m] (DESIGN §4) or relative half-width change"
+    )
+    placement: Literal["open_centre", "grasp_centre", "previous"] = Field(
+        "open_centre",
+        description="hand point put over the object's centre: c_0 of the open hand or c_T of the closed hand "
+        "(both strategies), or the previous per-strategy rule",
+    )
     store: bool = Field(True, description="store the plan (GET /v1/plans/{id}, image.png); false: id is null")
 
 

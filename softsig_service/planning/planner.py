@@ -4,9 +4,14 @@ Frames: world = UR5 ``base_link`` (z up); poses are of the flange ``tool0`` (= t
 points hand +z (the approach) down. The planner:
 
 1. proposes the flange orientation and horizontal position of both yaw branches: strategy **S** aligns hand +x
-   with the object's major axis and centres the open hand's bounding box over the object; strategy **C** solves
-   the wrist-pose NLP that aligns the closure signature's horizontal projection with the object's closing
-   axis (default the minor axis) and puts the CS anchor over the object's centre;
+   with the object's major axis; strategy **C** solves the wrist-pose NLP that aligns the closure signature's
+   horizontal projection with the object's closing axis (default the minor axis). Both put the same point of
+   the hand over the object's centre, so that S and C differ only in yaw (DESIGN §6): by default
+   (``placement="open_centre"``) the centre c_0 of the open hand's reference-point ellipsoid (the ellipsoid
+   CS's anchor); ``placement="grasp_centre"`` the centre c_T of the closed hand's reference-point ellipsoid
+   (DESIGN §6's grasp centre; for the SoftHand it lies under the palm, where a top grasp cannot wrap an
+   object: docs/experiment_table1.md); ``placement="previous"`` keeps the earlier per-strategy rule (S: centre
+   of the open reference points' bounding box, C: the CS anchor) for ablations;
 2. descends from high above along the approach until the open hand comes within ``margin`` of the table or the
    object (the grasp pose), and raises the pre-grasp ``approach_distance`` back along the approach;
 3. solves the UR5 IK for the grasp (seeded by the current configuration), the pre-grasp (seeded by the grasp)
@@ -32,6 +37,7 @@ from softsig_service.arm.collision import CollisionWorld, HandShape
 from softsig_service.arm.ur5 import HOME_Q, UR5, load_ur5
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
+from softsig_service.geometry.ellipsoid import mvee
 from softsig_service.geometry.transforms import Pose, matrix_to_quat
 from softsig_service.hands.closure import simulate_closure
 from softsig_service.hands.collision_shapes import hand_collision_shapes
@@ -40,11 +46,17 @@ from softsig_service.planning.clearance import HandClearance
 from softsig_service.planning.objects import TableObject
 from softsig_service.planning.strategies import STRATEGIES, axis_angle_between_lines, strategy_s_poses
 from softsig_service.planning.wrist_pose import solve_wrist_pose
-from softsig_service.signatures.closure import ClosureSignature, compute_closure_signature
+from softsig_service.signatures.closure import ClosureSignature, Criterion, compute_closure_signature
 
 START_HEIGHT = 0.5
 """[m] the descent starts this far above the object's centre along the approach."""
 APPROACH_WAYPOINTS = 4
+Placement = Literal["open_centre", "grasp_centre", "previous"]
+PLACEMENTS: tuple[Placement, ...] = ("open_centre", "grasp_centre", "previous")
+"""Which hand point goes over the object's centre: c_0 of the open hand (both strategies, the default), c_T of
+the closed hand (both strategies), or the previous rule (S: the open reference points' bounding-box centre;
+C: the CS anchor)."""
+DEFAULT_PLACEMENT: Placement = "open_centre"
 
 
 @dataclass(frozen=True)
@@ -57,16 +69,30 @@ class HandPlanningModel:
     """(N, 3) [m] open-hand reference points, hand frame."""
     shapes: tuple[HandShape, ...]
     bbox_center: NDArray[np.float64]
-    """[m] centre of the open reference points' bounding box, hand frame (what strategy S centres)."""
+    """[m] centre of the open reference points' bounding box, hand frame (strategy S, ``placement="previous"``)."""
+    open_centre: NDArray[np.float64]
+    """[m] centre c_0 of the open hand's reference-point ellipsoid (MVEE), hand frame."""
+    grasp_centre: NDArray[np.float64]
+    """[m] centre c_T of the closed hand's reference-point ellipsoid (MVEE), hand frame: where the hand closes to."""
     closure: dict[str, Any]
+
+    def placement_point(self, strategy: str, placement: Placement) -> NDArray[np.float64]:
+        """The hand-frame point [m] the planner puts over the object's centre for ``strategy`` and ``placement``."""
+        if placement == "open_centre":
+            return self.open_centre
+        if placement == "grasp_centre":
+            return self.grasp_centre
+        return self.signature.anchor if strategy == "C" else self.bbox_center
 
 
 @functools.lru_cache(maxsize=32)
-def planning_model(hand_ref: str, method: str = "ellipsoid", settings: Settings | None = None) -> HandPlanningModel:
-    """Simulate the hand's closure once and derive its planning data (cached per hand and CS method)."""
+def planning_model(
+    hand_ref: str, method: str = "ellipsoid", settings: Settings | None = None, criterion: Criterion = "absolute"
+) -> HandPlanningModel:
+    """Simulate the hand's closure once and derive its planning data (cached per hand, CS method and criterion)."""
     hand = load_hand(hand_ref, settings)
     traj = simulate_closure(hand, surface_points=800 if method == "mesh" else 0)
-    cs = compute_closure_signature(traj, method)  # type: ignore[arg-type]
+    cs = compute_closure_signature(traj, method, criterion=criterion)  # type: ignore[arg-type]
     P = traj.positions[0]
     closure = {
         "actuators": [hand.model.actuator(a).name for a in hand.closure_actuators],
@@ -80,6 +106,8 @@ def planning_model(hand_ref: str, method: str = "ellipsoid", settings: Settings 
         points_open=P,
         shapes=tuple(hand_collision_shapes(hand)),
         bbox_center=(P.min(axis=0) + P.max(axis=0)) / 2,
+        open_centre=mvee(P).center,
+        grasp_centre=mvee(traj.positions[-1]).center,
         closure=closure,
     )
 
@@ -96,10 +124,17 @@ class PlanRequest:
     approach_distance: float = 0.10
     margin: float = 0.005
     cs_method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid"
+    cs_criterion: Criterion = "absolute"
+    placement: Placement = DEFAULT_PLACEMENT
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGIES:
             raise InvalidInput("unknown strategy", field="strategy", value=self.strategy, choices=STRATEGIES)
+        if self.placement not in PLACEMENTS:
+            raise InvalidInput("unknown placement", field="placement", value=self.placement, choices=PLACEMENTS)
+        if self.cs_criterion not in ("absolute", "relative"):
+            raise InvalidInput("unknown criterion", field="cs_criterion", value=self.cs_criterion,
+                               choices=("absolute", "relative"))  # fmt: skip
         if self.closing_axis not in ("minor", "major"):
             raise InvalidInput("unknown closing axis", field="closing_axis", value=self.closing_axis,
                                choices=("minor", "major"))  # fmt: skip
@@ -188,12 +223,13 @@ class Planner:
     def plan(self, req: PlanRequest) -> GraspPlan:
         """Plan ``req``; never raises for an infeasible problem (``success=False`` with reasons)."""
         t_start = time.perf_counter()
-        model = planning_model(req.hand, req.cs_method, self.settings)
+        model = planning_model(req.hand, req.cs_method, self.settings, req.cs_criterion)
         obj = req.obj
         q_now = np.asarray(req.current_q if req.current_q is not None else HOME_Q, dtype=float)
         q_now = self.ur5.check_q(q_now, field="current_q")
         closing = obj.o2 if req.closing_axis == "minor" else obj.o1
         center = obj.center
+        hand_point = model.placement_point(req.strategy, req.placement)
 
         # one plan at a time per planner: the compiled CasADi solvers, Pinocchio data and the coal world are
         # shared state and not re-entrant
@@ -202,7 +238,7 @@ class Planner:
             candidates: list[_Candidate] = []
             if req.strategy == "C":
                 sols = solve_wrist_pose(
-                    model.signature.axis, model.signature.anchor, model.points_open, center, closing,
+                    model.signature.axis, hand_point, model.points_open, center, closing,
                     table_height=obj.table_height, margin=req.margin,
                 )  # fmt: skip
                 for s in sols:
@@ -213,7 +249,7 @@ class Planner:
                         )
                     candidates.append(c)
             else:
-                for T in strategy_s_poses(center, obj.o1, model.bbox_center):
+                for T in strategy_s_poses(center, obj.o1, hand_point):
                     candidates.append(_Candidate(T=T, status="closed_form", iterations=0))
             t_strategy = time.perf_counter() - t0
 
@@ -272,7 +308,13 @@ class Planner:
                 "total": time.perf_counter() - t_start,
             },
             closure=model.closure,
-            solver={"status": best.status, "iterations": best.iterations, "cs_method": req.cs_method},
+            solver={
+                "status": best.status,
+                "iterations": best.iterations,
+                "cs_method": req.cs_method,
+                "cs_criterion": req.cs_criterion,
+                "placement": req.placement,
+            },
         )
 
     def _finish(self, c: _Candidate, req: PlanRequest, world: CollisionWorld) -> tuple[float, float]:
@@ -292,7 +334,7 @@ class Planner:
 
         Runs the same IK, approach and collision checks as :meth:`plan` on a pose given by the caller.
         """
-        model = planning_model(req.hand, req.cs_method, self.settings)
+        model = planning_model(req.hand, req.cs_method, self.settings, req.cs_criterion)
         q_now = self.ur5.check_q(np.asarray(req.current_q or HOME_Q, dtype=float), field="current_q")
         c = _Candidate(T=np.asarray(T_grasp, dtype=float), status="given", iterations=0)
         c.T_pre = c.T.copy()

@@ -234,6 +234,30 @@ class SignatureRecord:
         """Strong ETag of this version."""
         return f'"{self.hand}.v{self.version}"'
 
+    @property
+    def criterion(self) -> str | None:
+        """The criterion of an ellipsoid closure signature: "absolute" (deltas [m]) or "relative" (dimensionless);
+        None for other methods and kinds, and when nothing in the row tells.
+
+        Read from the stored ``params["criterion"]``, else from the signature's own ``params``, else from its
+        ``extras["magnitude_unit"]`` ("m": absolute, "1": relative), so ellipsoid versions stored without the
+        field (computed when the relative change was the only criterion) read back as "relative".
+        """
+        if self.kind != "closure" or self.method != "ellipsoid":
+            return None
+        sig_params = self.data.get("params")
+        extras = self.data.get("extras")
+        candidates = [self.params.get("criterion")]
+        if isinstance(sig_params, dict):
+            candidates.append(sig_params.get("criterion"))
+        if isinstance(extras, dict):
+            candidates.append(_CRITERION_OF_UNIT.get(str(extras.get("magnitude_unit"))))
+        return next((c for c in candidates if c in ("absolute", "relative")), None)
+
+
+_CRITERION_OF_UNIT = {"m": "absolute", "1": "relative"}
+"""The ellipsoid criterion of a stored closure signature by the unit of its magnitude."""
+
 
 def _signature(row: SignatureRow, hand: str) -> SignatureRecord:
     return SignatureRecord(

@@ -8,13 +8,20 @@ Three methods, one result type:
 
 * **ellipsoid** (:func:`ellipsoid_closure_signature`) — the five steps of DESIGN §4: E_0, E_T = minimum-volume
   enclosing ellipsoids of the first and last frames (:func:`~softsig_service.geometry.ellipsoid.mvee`); along
-  each axis r_k of E_0 the half-width ``a_k(t) = sqrt(r_k^T A_t^-1 r_k)`` [m];
-  ``delta_k = (a_k(T) - a_k(0)) / a_k(0)`` (dimensionless, negative = the hand narrows along r_k); the CS is
-  the r_k with the largest |delta_k|, anchored at c_0, magnitude delta_k*. Also the centre drift
-  ``r_k^T (c_T - c_0)`` [m]. Only E_0 and E_T are fitted; :func:`ellipsoid_axis_series` gives a_k(t) and the
-  drift for every frame. Being relative, delta_k is large along a thin axis of E_0: a nearly flat open hand
-  tends to get its normal as the CS, and a coplanar one (lifted, see ``extras["lifted_epsilon"]``) a delta
-  of order 1 / lift_epsilon along it.
+  each axis r_k of E_0 the half-width ``a_k(t) = sqrt(r_k^T A_t^-1 r_k)`` [m]; the change of each half-width
+  is delta_k, by one of two criteria (:data:`CRITERIA`):
+
+  - ``"absolute"`` (the default, DESIGN §4): ``delta_k = a_k(T) - a_k(0)`` [m], negative = the hand narrows
+    along r_k;
+  - ``"relative"`` (an option, never the default): ``delta_k = (a_k(T) - a_k(0)) / a_k(0)`` (dimensionless).
+    It is large along a thin axis of E_0 whatever the hand does: a nearly flat open hand tends to get its
+    normal as the CS, and a coplanar one (lifted, see ``extras["lifted_epsilon"]``) a delta of order
+    1 / lift_epsilon along it.
+
+  The CS is the r_k with the largest |delta_k|, anchored at c_0, magnitude delta_k*. Both changes are reported
+  whichever criterion elects the CS (``extras["absolute_change"]`` [m], ``extras["relative_change"]``), and so
+  is the centre drift ``r_k^T (c_T - c_0)`` [m]. Only E_0 and E_T are fitted; :func:`ellipsoid_axis_series`
+  gives a_k(t), both changes and the drift for every frame.
 * **pca** (:func:`pca_closure_signature`) — displacements ``D = P[t] - P[0]`` for t = 1..T-1 (the identically
   zero t = 0 block is left out) and every point, stacked; principal directions of their second moment about
   zero (or, optionally, about their mean). deformation_k = RMS displacement along direction k [m] (square root
@@ -37,9 +44,11 @@ Conventions common to the three:
 * ``distinctness = |deformation[0]| / |deformation[1]|``; when the second is 0 (or the ratio exceeds it) it
   is :data:`DISTINCTNESS_CAP` (1e6); when all deformations are 0 it is 1.0. ``ambiguous`` means
   ``distinctness < 1.1``. "0" means at or below the method's numerical resolution, reported as
-  ``extras["resolution"]``: 10 x tol for the ellipsoid deltas, 1e-12 x the largest |coordinate| [m] for pca,
-  1e-9 for the mesh ln-stretches (so a hand that does not move gets distinctness 1.0, ambiguous, rather than
-  a ratio of round-off errors).
+  ``extras["resolution"]``: for the ellipsoid deltas 10 x tol x the largest semi-axis of E_0 and E_T [m]
+  (absolute criterion; the MVEE's rescaling enlarges each semi-axis by a relative ~tol, so a half-width is
+  known to about tol x its length) or 10 x tol (relative criterion); 1e-12 x the largest |coordinate| [m] for
+  pca; 1e-9 for the mesh ln-stretches (so a hand that does not move gets distinctness 1.0, ambiguous, rather
+  than a ratio of round-off errors).
 """
 
 from __future__ import annotations
@@ -64,6 +73,11 @@ from softsig_service.hands.trajectory import MIN_POINTS, ClosureTrajectory
 
 Method = Literal["ellipsoid", "pca", "mesh"]
 METHODS: tuple[Method, ...] = ("ellipsoid", "pca", "mesh")
+Criterion = Literal["absolute", "relative"]
+"""How the ellipsoid method measures the change of a half-width: ``a_k(T) - a_k(0)`` [m] or that / ``a_k(0)``."""
+CRITERIA: tuple[Criterion, ...] = ("absolute", "relative")
+"""The ellipsoid criteria; the first, "absolute", is the default (DESIGN §4)."""
+DEFAULT_CRITERION: Criterion = "absolute"
 MeshSource = Literal["surface", "reference_points"]
 
 DISTINCTNESS_CAP = 1e6
@@ -71,7 +85,8 @@ DISTINCTNESS_CAP = 1e6
 AMBIGUITY_THRESHOLD = 1.1
 """A CS whose distinctness is below this is flagged ``ambiguous`` (DESIGN §4)."""
 ELLIPSOID_RESOLUTION_FACTOR = 10.0
-"""Ellipsoid deltas with |delta| <= this x tol are below the MVEE's precision and count as 0 in distinctness."""
+"""Ellipsoid deltas with |delta| <= this x tol (relative criterion), or this x tol x the largest semi-axis of E_0
+and E_T [m] (absolute criterion), are below the MVEE's precision and count as 0 in distinctness."""
 PCA_RESOLUTION_RTOL = 1e-12
 """PCA RMS displacements <= this x max |coordinate| [m] are round-off and count as 0 in distinctness."""
 MESH_RESOLUTION = 1e-9
@@ -86,11 +101,13 @@ class ClosureSignature:
 
     Attributes:
         method: "ellipsoid", "pca" or "mesh".
-        params: the method's parameters (JSON-ready), e.g. ``{"tol", "max_iter", "lift_epsilon"}``.
+        params: the method's parameters (JSON-ready): ellipsoid ``{"tol", "max_iter", "lift_epsilon",
+            "criterion"}``, pca ``{"about"}``, mesh ``{"source"}``.
         axis: (3,) unit CS axis in the hand frame, sign rule of DESIGN §4 (== ``axes[0]``).
         anchor: (3,) point the axis passes through [m], hand frame (c_0 or the initial centroid).
-        magnitude: ``deformation[0]``: ellipsoid delta (relative change of half-width, dimensionless, signed);
-            pca RMS displacement [m] (>= 0); mesh ln-stretch (dimensionless, signed).
+        magnitude: ``deformation[0]``: ellipsoid delta, signed: with ``params["criterion"] == "absolute"`` (the
+            default) the change of the half-width [m], with "relative" that change / the initial half-width
+            (dimensionless); pca RMS displacement [m] (>= 0); mesh ln-stretch (dimensionless, signed).
         deformation: (3,) the per-axis values, same unit as ``magnitude``, aligned with the rows of ``axes``.
         axes: (3, 3) unit vectors as **rows**, ordered by |deformation| descending.
         distinctness: |deformation[0]| / |deformation[1]| (capped at :data:`DISTINCTNESS_CAP`).
@@ -123,8 +140,9 @@ class ClosureSignature:
         final_ellipsoid, each ``{center [m], semi_axes [m], axes (3 unit vectors)}``.
 
         ``extras`` always has ``magnitude_unit`` ("1" or "m"), ``resolution`` (same unit), ``n_frames`` and
-        ``n_points``, plus ellipsoid:
-        ``centre_drift`` [m], ``half_width_initial`` [m], ``half_width_final`` [m] (per row of axes),
+        ``n_points``, plus ellipsoid (``magnitude_unit`` "m" for the absolute criterion, "1" for the relative):
+        ``absolute_change`` [m], ``relative_change`` (dimensionless), ``centre_drift`` [m],
+        ``half_width_initial`` [m], ``half_width_final`` [m] (all per row of axes, whichever the criterion),
         ``lifted_epsilon`` {initial, final} [m], ``solver`` {initial, final: {iterations, converged, gap}};
         pca: ``explained_variance_ratio`` (per row of axes), ``rms_displacement`` [m], ``n_displacements``;
         mesh: ``stretches`` (per row of axes), ``fit_residual_rms`` [m], ``fit_residual_max`` [m], ``det_F``,
@@ -156,13 +174,16 @@ class EllipsoidAxisSeries:
     Attributes:
         axes: (3, 3) the r_k as rows (sign rule applied), ordered by E_0's semi-axes descending.
         half_widths: (T, 3) a_k(t) = sqrt(r_k^T A_t^-1 r_k) [m].
-        relative_change: (T, 3) a_k(t) / a_k(0) - 1 (dimensionless); the last row is the method's delta_k.
+        absolute_change: (T, 3) a_k(t) - a_k(0) [m]; the last row is delta_k of the absolute criterion.
+        relative_change: (T, 3) a_k(t) / a_k(0) - 1 (dimensionless); the last row is delta_k of the relative
+            criterion.
         centre_drift: (T, 3) r_k^T (c_t - c_0) [m].
         iterations, converged, lifted_epsilon [m]: (T,) solver diagnostics of each E_t.
     """
 
     axes: NDArray[np.float64]
     half_widths: NDArray[np.float64]
+    absolute_change: NDArray[np.float64]
     relative_change: NDArray[np.float64]
     centre_drift: NDArray[np.float64]
     iterations: NDArray[np.int64]
@@ -178,24 +199,40 @@ def compute_closure_signature(
     max_iter: int = DEFAULT_MAX_ITER,
     lift_epsilon: float = DEFAULT_LIFT_EPSILON,
     pca_about: MomentOrigin = "zero",
+    criterion: Criterion = DEFAULT_CRITERION,
 ) -> ClosureSignature:
-    """Closure signature of ``traj`` by ``method``.
+    """Closure signature of ``traj`` (positions [m], hand frame) by ``method``; every vector in the hand frame.
 
     ``tol``, ``max_iter`` and ``lift_epsilon`` configure the ellipsoid method's MVEE (see
-    :mod:`softsig_service.geometry.ellipsoid`), ``pca_about`` the pca method ("zero", the DESIGN default, or
-    "mean"); parameters of the other methods are ignored. The mesh method uses ``traj.surface`` when present
-    and otherwise the reference points (``params["source"]`` says which). Raises :class:`InvalidInput` for an
-    unknown method and :class:`InvalidTrajectory` for unusable positions.
+    :mod:`softsig_service.geometry.ellipsoid`) and ``criterion`` its delta ("absolute" [m], the default, or
+    "relative"); ``pca_about`` configures the pca method ("zero", the DESIGN default, or "mean"). Parameters of
+    the other methods are ignored: pca and mesh neither use the criterion nor record it in their ``params``
+    (only the ellipsoid method has one), but an unknown criterion is refused whatever the method. The mesh
+    method uses ``traj.surface`` when present and otherwise the reference points (``params["source"]`` says
+    which). Raises :class:`InvalidInput` for an unknown method or criterion and :class:`InvalidTrajectory` for
+    unusable positions.
     """
+    if method not in METHODS:
+        raise InvalidInput("unknown closure-signature method", field="method", value=method, choices=METHODS)
+    check_criterion(criterion)
     if method == "ellipsoid":
-        return ellipsoid_closure_signature(traj.positions, tol=tol, max_iter=max_iter, lift_epsilon=lift_epsilon)
+        return ellipsoid_closure_signature(
+            traj.positions, tol=tol, max_iter=max_iter, lift_epsilon=lift_epsilon, criterion=criterion
+        )
     if method == "pca":
         return pca_closure_signature(traj.positions, about=pca_about)
-    if method == "mesh":
-        if traj.surface is not None:
-            return mesh_closure_signature(traj.surface, source="surface")
-        return mesh_closure_signature(traj.positions, source="reference_points")
-    raise InvalidInput("unknown closure-signature method", field="method", value=method, choices=METHODS)
+    if traj.surface is not None:
+        return mesh_closure_signature(traj.surface, source="surface")
+    return mesh_closure_signature(traj.positions, source="reference_points")
+
+
+def check_criterion(criterion: object) -> Criterion:
+    """``criterion`` if it is one of :data:`CRITERIA`, else :class:`InvalidInput` naming the field ``criterion``."""
+    if criterion == "absolute":
+        return "absolute"
+    if criterion == "relative":
+        return "relative"
+    raise InvalidInput("unknown ellipsoid criterion", field="criterion", value=criterion, choices=CRITERIA)
 
 
 def ellipsoid_closure_signature(
@@ -204,15 +241,31 @@ def ellipsoid_closure_signature(
     tol: float = DEFAULT_TOL,
     max_iter: int = DEFAULT_MAX_ITER,
     lift_epsilon: float = DEFAULT_LIFT_EPSILON,
+    criterion: Criterion = DEFAULT_CRITERION,
 ) -> ClosureSignature:
-    """Ellipsoid-method CS of ``positions`` (T, N, 3) [m], hand frame; fits only E_0 and E_T."""
+    """Ellipsoid-method CS of ``positions`` (T, N, 3) [m], hand frame; fits only E_0 and E_T.
+
+    ``criterion`` "absolute" (the default): ``delta_k = a_k(T) - a_k(0)`` [m]; "relative":
+    ``delta_k = (a_k(T) - a_k(0)) / a_k(0)`` (dimensionless). The CS is the axis of the largest |delta_k|;
+    ``extras`` carry both changes per row of ``axes``. Raises :class:`InvalidInput` (field ``criterion``) for
+    an unknown criterion.
+    """
+    criterion = check_criterion(criterion)
     p = _check_positions(positions, "positions", min_points=MIN_POINTS)
     fits = mvee_batch(p[[0, -1]], tol=tol, max_iter=max_iter, lift_epsilon=lift_epsilon)
     e0, e_t = fits[0], fits[1]
     r = e0.axes.T  # rows r_k, E_0's semi-axes descending, sign rule applied
     a0 = e0.semi_axes
     a_t = np.sqrt(np.einsum("ki,ij,kj->k", r, e_t.inverse_shape(), r))
-    delta = (a_t - a0) / a0
+    absolute = a_t - a0
+    relative = absolute / a0
+    if criterion == "absolute":
+        delta, unit = absolute, "m"
+        largest = max(float(e0.semi_axes.max()), float(e_t.semi_axes.max()))
+        resolution = ELLIPSOID_RESOLUTION_FACTOR * tol * largest
+    else:
+        delta, unit = relative, "1"
+        resolution = ELLIPSOID_RESOLUTION_FACTOR * tol
     drift = r @ (e_t.center - e0.center)
     solver = {
         name: {"iterations": e.iterations, "converged": e.converged, "gap": e.gap}
@@ -220,14 +273,20 @@ def ellipsoid_closure_signature(
     }
     return _assemble(
         "ellipsoid",
-        params={"tol": tol, "max_iter": max_iter, "lift_epsilon": lift_epsilon},
+        params={"tol": tol, "max_iter": max_iter, "lift_epsilon": lift_epsilon, "criterion": criterion},
         directions=r,
         deformation=delta,
         anchor=e0.center,
-        per_axis={"centre_drift": drift, "half_width_initial": a0, "half_width_final": a_t},
-        resolution=ELLIPSOID_RESOLUTION_FACTOR * tol,
+        per_axis={
+            "absolute_change": absolute,
+            "relative_change": relative,
+            "centre_drift": drift,
+            "half_width_initial": a0,
+            "half_width_final": a_t,
+        },
+        resolution=resolution,
         extras={
-            "magnitude_unit": "1",
+            "magnitude_unit": unit,
             "lifted_epsilon": {"initial": e0.lifted_epsilon, "final": e_t.lifted_epsilon},
             "solver": solver,
             "n_frames": int(p.shape[0]),
@@ -245,7 +304,8 @@ def ellipsoid_axis_series(
     max_iter: int = DEFAULT_MAX_ITER,
     lift_epsilon: float = DEFAULT_LIFT_EPSILON,
 ) -> EllipsoidAxisSeries:
-    """Fit E_t for every frame of ``positions`` (T, N, 3) [m]; measure it along E_0's axes (DESIGN §4, 4)."""
+    """Fit E_t for every frame of ``positions`` (T, N, 3) [m], hand frame; measure it along E_0's axes (DESIGN
+    §4, step 4): half-widths [m], their absolute [m] and relative changes, and the centre drift [m]."""
     p = _check_positions(positions, "positions", min_points=MIN_POINTS)
     fits = mvee_batch(p, tol=tol, max_iter=max_iter, lift_epsilon=lift_epsilon)
     r = fits.axes[0].T  # rows
@@ -257,6 +317,7 @@ def ellipsoid_axis_series(
     return EllipsoidAxisSeries(
         axes=r,
         half_widths=half,
+        absolute_change=half - half[0],
         relative_change=half / half[0] - 1.0,
         centre_drift=drift,
         iterations=fits.iterations,

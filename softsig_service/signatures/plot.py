@@ -86,12 +86,23 @@ def plot_closure_signature(traj: ClosureTrajectory, cs: ClosureSignature, path: 
     flag = " (ambiguous)" if cs.ambiguous else ""
     ax.set_title(
         f"{traj.hand}: {cs.method} closure signature, hand frame\n"
-        f"magnitude {cs.magnitude:.3g}, distinctness {cs.distinctness:.3g}{flag}",
+        f"magnitude {magnitude_label(cs)}, distinctness {cs.distinctness:.3g}{flag}",
         fontsize=10,
     )
     ax.legend(loc="upper left", fontsize=8)
     fig.savefig(out)
     return out
+
+
+def magnitude_label(cs: ClosureSignature) -> str:
+    """The CS magnitude with its unit and, for the ellipsoid method, what it measures, e.g.
+    "+0.0123 m (absolute change of the half-width)" or "+1.4 (relative change of the half-width)"."""
+    unit = cs.extras.get("magnitude_unit", "")
+    text = f"{cs.magnitude:+.3g}" + (f" {unit}" if unit and unit != "1" else "")
+    criterion = cs.params.get("criterion") if cs.method == "ellipsoid" else None
+    if criterion is not None:
+        text += f" ({criterion} change of the half-width)"
+    return text
 
 
 def _ellipsoid_mesh(

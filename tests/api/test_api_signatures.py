@@ -35,6 +35,9 @@ def test_closure_signature_versions(api: TestClient) -> None:
     assert r1.headers["location"] == "/v1/hands/sdm_hand/signatures/1" and r1.headers["etag"] == '"sdm_hand.v1"'
     sig = v1["signature"]
     assert sig["method"] == "ellipsoid" and sig["frame_id"] == "hand"
+    # the default criterion is the absolute change of the half-width [m]
+    assert v1["criterion"] == "absolute" and v1["params"]["criterion"] == "absolute"
+    assert sig["params"]["criterion"] == "absolute" and sig["extras"]["magnitude_unit"] == "m"
     assert {"axis", "anchor", "magnitude", "deformation", "axes", "distinctness", "initial_ellipsoid"} <= set(sig)
     assert math.isclose(math.fsum(a * a for a in sig["axis"]), 1.0, rel_tol=1e-9)
     # the stored CS is the library's CS of the same closure
@@ -53,6 +56,8 @@ def test_closure_signature_versions(api: TestClient) -> None:
     listing = api.get("/v1/hands/sdm_hand/signatures").json()
     assert [s["version"] for s in listing["items"]] == [3, 2, 1] and listing["total"] == 3
     assert [s["method"] for s in listing["items"]] == ["mesh", "pca", "ellipsoid"]
+    assert [s["criterion"] for s in listing["items"]] == [None, None, "absolute"]
+    assert "criterion" not in r2.json()["params"], "pca has no criterion"
     latest = api.get("/v1/hands/sdm_hand/signatures/latest", params={"kind": "closure"})
     assert latest.json()["version"] == 3 and latest.headers["etag"] == '"sdm_hand.v3"'
     old = api.get("/v1/hands/sdm_hand/signatures/1").json()
@@ -62,10 +67,73 @@ def test_closure_signature_versions(api: TestClient) -> None:
     assert api.get("/v1/hands/sdm_hand").json()["signature_count"] == 3
 
 
+def test_closure_signature_criterion_round_trip(api: TestClient) -> None:
+    url = "/v1/hands/parallel_gripper/signatures"
+    r = api.post(url, json={"kind": "closure", "method": "ellipsoid", "criterion": "relative"}, headers=AUTH)
+    assert r.status_code == 201, r.text
+    stored = r.json()
+    assert stored["criterion"] == "relative" and stored["params"]["criterion"] == "relative"
+    sig = stored["signature"]
+    assert sig["params"]["criterion"] == "relative" and sig["extras"]["magnitude_unit"] == "1"
+    # the library's relative CS of the same closure, deltas dimensionless
+    traj = simulate_closure(load_hand("parallel_gripper"), surface_points=0)
+    expected = compute_closure_signature(traj, "ellipsoid", criterion="relative")
+    assert all(math.isclose(a, b, abs_tol=1e-9) for a, b in zip(sig["deformation"], expected.deformation, strict=True))
+    extras = sig["extras"]
+    for rel, absolute, a0 in zip(
+        extras["relative_change"], extras["absolute_change"], extras["half_width_initial"], strict=True
+    ):
+        assert math.isclose(absolute, rel * a0, rel_tol=1e-9, abs_tol=1e-15)
+    assert sig["deformation"] == extras["relative_change"]
+
+    default = api.post(url, json={"kind": "closure"}, headers=AUTH).json()
+    assert default["criterion"] == "absolute" and default["signature"]["extras"]["magnitude_unit"] == "m"
+    assert default["signature"]["deformation"] == default["signature"]["extras"]["absolute_change"]
+    absolute = compute_closure_signature(traj, "ellipsoid")
+    assert math.isclose(default["signature"]["magnitude"], absolute.magnitude, abs_tol=1e-12)
+
+    # read back: by version, as the latest, in the listing
+    back = api.get(f"{url}/{stored['version']}").json()
+    assert back["criterion"] == "relative" and back["params"] == stored["params"] and back["signature"] == sig
+    assert api.get(f"{url}/latest").json()["criterion"] == "absolute"
+    listing = {s["version"]: s["criterion"] for s in api.get(url).json()["items"]}
+    assert listing[stored["version"]] == "relative" and listing[default["version"]] == "absolute"
+
+    # pca and mesh have no criterion: accepted, ignored and not recorded
+    pca = api.post(url, json={"kind": "closure", "method": "pca", "criterion": "relative"}, headers=AUTH).json()
+    assert (
+        pca["criterion"] is None and "criterion" not in pca["params"] and "criterion" not in pca["signature"]["params"]
+    )
+
+
+def test_markers_upload_with_a_criterion(api: TestClient) -> None:
+    url = "/v1/hands/parallel_gripper/signatures/markers"
+    csv = _markers_csv("parallel_gripper")
+    r = api.post(url, files={"file": ("closure.csv", csv)}, data={"criterion": "relative"}, headers=AUTH)
+    assert r.status_code == 201, r.text
+    out = r.json()
+    assert out["criterion"] == "relative" and out["params"]["criterion"] == "relative"
+    assert out["signature"]["params"]["criterion"] == "relative" and out["signature"]["extras"]["magnitude_unit"] == "1"
+    assert api.get(f"/v1/hands/parallel_gripper/signatures/{out['version']}").json()["criterion"] == "relative"
+    default = api.post(url, files={"file": ("closure.csv", csv)}, headers=AUTH).json()
+    assert default["criterion"] == "absolute" and default["signature"]["extras"]["magnitude_unit"] == "m"
+    body = assert_problem(
+        api.post(url, files={"file": ("closure.csv", csv)}, data={"criterion": "percent"}, headers=AUTH), 422,
+        "criterion",
+    )  # fmt: skip
+    assert body["choices"] == ["absolute", "relative"]
+
+
 def test_signature_bad_input(api: TestClient) -> None:
     url = "/v1/hands/sdm_hand/signatures"
     body = assert_problem(api.post(url, json={"kind": "closure", "method": "fourier"}, headers=AUTH), 422, "method")
     assert body["choices"] == ["ellipsoid", "mesh", "pca"]
+    bad = {"kind": "closure", "method": "ellipsoid", "criterion": "percent"}
+    body = assert_problem(api.post(url, json=bad, headers=AUTH), 422, "criterion")
+    assert body["choices"] == ["absolute", "relative"] and body["value"] == "percent"
+    before = api.get("/v1/hands/sdm_hand").json()["signature_count"]
+    body = assert_problem(api.post(url, json={**bad, "criterion": None}, headers=AUTH), 422, "criterion")
+    assert api.get("/v1/hands/sdm_hand").json()["signature_count"] == before, "nothing is stored"
     body = assert_problem(api.post(url, json={"kind": "closure", "extra": 1}, headers=AUTH), 422, "extra")
     assert body["errors"][0]["type"] == "extra_forbidden"
     body = assert_problem(api.post(url, json={"kind": "telepathy"}, headers=AUTH), 422, "kind")

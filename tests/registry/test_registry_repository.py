@@ -90,6 +90,28 @@ def test_versions_if_match_and_revisions(reg: Registry) -> None:
     assert not repo.etag_matches(None, "*")
 
 
+def test_the_ellipsoid_criterion_reads_back(reg: Registry) -> None:
+    _hand(reg)
+    add = repo.add_signature
+    relative = add(reg, "h1", kind="closure", method="ellipsoid", source="simulation", params={"criterion": "relative"},
+                   data={"params": {"criterion": "relative"}, "extras": {"magnitude_unit": "1"}})  # fmt: skip
+    absolute = add(reg, "h1", kind="closure", method="ellipsoid", source="markers", params={"method": "ellipsoid"},
+                   data={"params": {"criterion": "absolute"}, "extras": {"magnitude_unit": "m"}})  # fmt: skip
+    # stored without a criterion anywhere: its dimensionless magnitude says relative
+    legacy = add(reg, "h1", kind="closure", method="ellipsoid", source="simulation",
+                 data={"params": {"tol": 1e-7}, "extras": {"magnitude_unit": "1"}})  # fmt: skip
+    pca = add(reg, "h1", kind="closure", method="pca", source="simulation", params={"criterion": "relative"},
+              data={"extras": {"magnitude_unit": "m"}})  # fmt: skip
+    unknown = add(reg, "h1", kind="closure", method="ellipsoid", source="simulation", data={"a": 1})
+    assert [r.criterion for r in (relative, absolute, legacy, pca, unknown)] == [
+        "relative", "absolute", "relative", None, None,
+    ]  # fmt: skip
+    back = {r.version: r.criterion for r in repo.list_signatures(reg, "h1")[0]}
+    assert back == {relative.version: "relative", absolute.version: "absolute", legacy.version: "relative",
+                    pca.version: None, unknown.version: None}  # fmt: skip
+    assert repo.get_signature(reg, "h1", relative.version).params == {"criterion": "relative"}
+
+
 def test_delete_cascades_and_builtins_are_read_only(reg: Registry) -> None:
     _hand(reg)
     repo.add_signature(reg, "h1", kind="closure", method="pca", source="simulation", data={})

@@ -1,4 +1,5 @@
-"""Closure signature (ellipsoid | pca | mesh): known closures, rigid-motion invariance, JSON, errors, plot."""
+"""Closure signature (ellipsoid | pca | mesh): known closures, the ellipsoid's absolute and relative criteria,
+rigid-motion invariance, JSON, errors, plot."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from numpy.typing import ArrayLike, NDArray
 
@@ -17,7 +18,9 @@ from softsig_service.geometry.pca import orient_axes, principal_components
 from softsig_service.geometry.transforms import quat_to_matrix
 from softsig_service.hands.trajectory import ClosureTrajectory
 from softsig_service.signatures.closure import (
+    CRITERIA,
     DISTINCTNESS_CAP,
+    ELLIPSOID_RESOLUTION_FACTOR,
     METHODS,
     ClosureSignature,
     compute_closure_signature,
@@ -27,7 +30,7 @@ from softsig_service.signatures.closure import (
     mesh_closure_signature,
     pca_closure_signature,
 )
-from softsig_service.signatures.plot import plot_closure_signature
+from softsig_service.signatures.plot import magnitude_label, plot_closure_signature
 
 FAST = settings(max_examples=30, deadline=None)
 OCTAHEDRON = np.vstack([np.eye(3), -np.eye(3)])
@@ -47,12 +50,14 @@ quaternions = st.tuples(*[st.floats(-1.0, 1.0) for _ in range(4)]).filter(
 seeds = st.integers(0, 2**32 - 1)
 
 
-def open_hand(frame: NDArray[np.float64], n_inner: int = 2, seed: int = 0) -> NDArray[np.float64]:
-    """Reference points of an open hand [m]: the 6 end points of an ellipsoid with semi-axes SEMI_AXES along
-    the columns of ``frame`` (so E_0 is exactly that ellipsoid), plus ``n_inner`` points inside it."""
+def open_hand(
+    frame: NDArray[np.float64], n_inner: int = 2, seed: int = 0, semi_axes: ArrayLike = SEMI_AXES
+) -> NDArray[np.float64]:
+    """Reference points of an open hand [m]: the 6 end points of an ellipsoid with semi-axes ``semi_axes`` [m]
+    along the columns of ``frame`` (so E_0 is exactly that ellipsoid), plus ``n_inner`` points inside it."""
     rng = np.random.default_rng(seed)
     inner = rng.uniform(-0.3, 0.3, size=(n_inner, 3))
-    return HAND_CENTRE + (np.vstack([OCTAHEDRON, inner]) * SEMI_AXES) @ frame.T
+    return HAND_CENTRE + (np.vstack([OCTAHEDRON, inner]) * np.asarray(semi_axes)) @ frame.T
 
 
 def close(
@@ -118,10 +123,17 @@ def test_a_squeeze_along_a_known_axis_gives_that_axis_for_all_methods(
 
     cs_e = compute_closure_signature(traj, "ellipsoid")
     assert same_line(cs_e.axis, expected) >= 1 - 1e-9
-    assert cs_e.magnitude == pytest.approx(squeeze - 1.0, abs=1e-6)
-    np.testing.assert_allclose(cs_e.deformation[1:], 0.0, atol=1e-6)
-    assert cs_e.distinctness == DISTINCTNESS_CAP  # the other deltas are below the resolution, 1e-6
+    assert cs_e.magnitude == pytest.approx((squeeze - 1.0) * SEMI_AXES[k], abs=1e-8)  # [m]
+    np.testing.assert_allclose(cs_e.deformation[1:], 0.0, atol=1e-8)
+    # the other deltas are below the resolution, 10 x tol x the largest semi-axis = 6e-8 m
+    assert cs_e.extras["resolution"] == pytest.approx(ELLIPSOID_RESOLUTION_FACTOR * 1e-7 * SEMI_AXES[0], rel=1e-6)
+    assert cs_e.distinctness == DISTINCTNESS_CAP
     np.testing.assert_allclose(cs_e.anchor, HAND_CENTRE, atol=1e-9)  # c_0, the centre of the end points
+    cs_r = compute_closure_signature(traj, "ellipsoid", criterion="relative")
+    assert same_line(cs_r.axis, expected) >= 1 - 1e-9
+    assert cs_r.magnitude == pytest.approx(squeeze - 1.0, abs=1e-6)
+    np.testing.assert_allclose(cs_r.deformation[1:], 0.0, atol=1e-6)
+    assert cs_r.distinctness == DISTINCTNESS_CAP  # below the relative resolution, 10 x tol = 1e-6
 
     cs_p = compute_closure_signature(traj, "pca")
     along = (p0 - HAND_CENTRE) @ expected  # signed distance of each point from the centre along the axis
@@ -140,7 +152,7 @@ def test_a_squeeze_along_a_known_axis_gives_that_axis_for_all_methods(
     assert cs_m.extras["fit_residual_rms"] <= 1e-12
     assert cs_m.params["source"] == "reference_points"
 
-    for cs in (cs_e, cs_p, cs_m):
+    for cs in (cs_e, cs_r, cs_p, cs_m):
         assert follows_sign_rule(cs.axis)
         assert all(follows_sign_rule(row) for row in cs.axes)
         np.testing.assert_array_equal(cs.axis, cs.axes[0])
@@ -152,17 +164,31 @@ def test_a_closure_along_two_axes_reports_each_delta_and_the_distinctness() -> N
     p0 = open_hand(frame)
     factors = np.array([1.05, 0.7, 0.9])
     p = close(p0, frame, factors, 40)
+    # half-widths 60, 40, 25 mm -> 63, 28, 22.5 mm: changes +3, -12, -2.5 mm, or +5 %, -30 %, -10 %
 
     cs = ellipsoid_closure_signature(p)
-    np.testing.assert_allclose(cs.deformation, [-0.3, -0.1, 0.05], atol=1e-6)
-    for row, k in zip(cs.axes, [1, 2, 0], strict=True):
+    assert cs.params["criterion"] == "absolute" and cs.extras["magnitude_unit"] == "m"
+    np.testing.assert_allclose(cs.deformation, [-0.012, 0.003, -0.0025], atol=1e-8)
+    for row, k in zip(cs.axes, [1, 0, 2], strict=True):
         assert same_line(row, frame[:, k]) >= 1 - 1e-9
-    assert cs.distinctness == pytest.approx(3.0, rel=1e-5)
+    assert cs.distinctness == pytest.approx(4.0, rel=1e-5)
     assert not cs.ambiguous
-    np.testing.assert_allclose(cs.extras["half_width_initial"], SEMI_AXES[[1, 2, 0]], rtol=1e-6)
-    np.testing.assert_allclose(cs.extras["half_width_final"], (SEMI_AXES * factors)[[1, 2, 0]], rtol=1e-6)
+    np.testing.assert_allclose(cs.extras["absolute_change"], cs.deformation, rtol=1e-12)
+    np.testing.assert_allclose(cs.extras["relative_change"], [-0.3, 0.05, -0.1], atol=1e-6)
+    np.testing.assert_allclose(cs.extras["half_width_initial"], SEMI_AXES[[1, 0, 2]], rtol=1e-6)
+    np.testing.assert_allclose(cs.extras["half_width_final"], (SEMI_AXES * factors)[[1, 0, 2]], rtol=1e-6)
     assert cs.initial_ellipsoid is not None and cs.final_ellipsoid is not None
     np.testing.assert_allclose(cs.initial_ellipsoid.semi_axes, SEMI_AXES, rtol=1e-6)
+    np.testing.assert_allclose(np.sort(cs.final_ellipsoid.semi_axes), np.sort(SEMI_AXES * factors), rtol=1e-6)
+
+    rel = ellipsoid_closure_signature(p, criterion="relative")
+    assert rel.params["criterion"] == "relative" and rel.extras["magnitude_unit"] == "1"
+    np.testing.assert_allclose(rel.deformation, [-0.3, -0.1, 0.05], atol=1e-6)
+    for row, k in zip(rel.axes, [1, 2, 0], strict=True):
+        assert same_line(row, frame[:, k]) >= 1 - 1e-9
+    assert rel.distinctness == pytest.approx(3.0, rel=1e-5)
+    np.testing.assert_allclose(rel.extras["relative_change"], rel.deformation, rtol=1e-12)
+    np.testing.assert_allclose(rel.extras["absolute_change"], [-0.012, -0.0025, 0.003], atol=1e-8)
 
     cs_m = mesh_closure_signature(p)
     np.testing.assert_allclose(cs_m.deformation, np.log([0.7, 0.9, 1.05]), atol=1e-9)
@@ -171,11 +197,19 @@ def test_a_closure_along_two_axes_reports_each_delta_and_the_distinctness() -> N
 
 def test_equal_squeezes_are_flagged_ambiguous() -> None:
     frame = rotation((0.3, 0.2, -0.9, 0.1))
-    p = close(open_hand(frame), frame, np.array([0.7, 0.7, 1.0]), 10)
+    # 60 -> 48 mm and 40 -> 28 mm: the same absolute change (-12 mm), relative changes -20 % and -30 %
+    p = close(open_hand(frame), frame, np.array([0.8, 0.7, 1.0]), 10)
     cs = ellipsoid_closure_signature(p)
     assert cs.distinctness == pytest.approx(1.0, abs=1e-5)
     assert cs.ambiguous
     assert cs.to_json_dict()["ambiguous"] is True
+    assert ellipsoid_closure_signature(p, criterion="relative").distinctness == pytest.approx(1.5, rel=1e-5)
+    # equal relative squeezes: ambiguous by the relative criterion, not by the absolute one
+    p = close(open_hand(frame), frame, np.array([0.7, 0.7, 1.0]), 10)
+    rel = ellipsoid_closure_signature(p, criterion="relative")
+    assert rel.distinctness == pytest.approx(1.0, abs=1e-5)
+    assert rel.ambiguous
+    assert ellipsoid_closure_signature(p).distinctness == pytest.approx(1.5, rel=1e-5)
 
 
 def test_centre_drift_and_the_per_frame_series() -> None:
@@ -193,11 +227,134 @@ def test_centre_drift_and_the_per_frame_series() -> None:
     assert series.converged.all()
     np.testing.assert_allclose(series.half_widths[0], SEMI_AXES, rtol=1e-6)
     np.testing.assert_allclose(series.relative_change, np.outer(progress, factors - 1.0), atol=1e-6)
+    np.testing.assert_allclose(series.absolute_change, np.outer(progress, SEMI_AXES * (factors - 1.0)), atol=1e-8)
     np.testing.assert_allclose(series.centre_drift, np.outer(progress, series.axes @ shift), atol=1e-8)
-    # the series' last row holds the signature's deltas (same axes, different order)
+    # the series' last row holds the signature's deltas (same axes, different order), for either criterion
+    rel = ellipsoid_closure_signature(p, criterion="relative")
+    for sig, change in ((cs, series.absolute_change), (rel, series.relative_change)):
+        for row, value in zip(sig.axes, sig.deformation, strict=True):
+            k = int(np.argmax(np.abs(series.axes @ row)))
+            assert change[-1, k] == pytest.approx(value, abs=1e-9)
+
+
+# ---------------------------------------------------------------------------------- absolute vs relative delta
+
+
+@pytest.mark.parametrize("q", [(1.0, 0.0, 0.0, 0.0), (0.7, 0.2, -0.4, 0.5)])
+def test_a_thin_axis_that_grows_a_little_wins_only_the_relative_criterion(q: tuple[float, float, float, float]) -> None:
+    # a flat open hand: half-widths 60, 30 and 4 mm along the columns of frame (the last one the palm normal);
+    # closing, the long axis grows 60 -> 80 mm (+20 mm, +33 %), the middle one shrinks 30 -> 27 mm (-3 mm,
+    # -10 %), the thin one grows 4 -> 9 mm (+5 mm, +125 %)
+    frame = rotation(q)
+    initial = np.array([0.060, 0.030, 0.004])
+    final = np.array([0.080, 0.027, 0.009])
+    p = close(open_hand(frame, n_inner=4, semi_axes=initial), frame, final / initial, 15)
+
+    absolute = ellipsoid_closure_signature(p)
+    assert absolute.params["criterion"] == "absolute" and absolute.extras["magnitude_unit"] == "m"
+    assert same_line(absolute.axis, frame[:, 0]) >= 1 - 1e-9  # the long axis
+    assert absolute.magnitude == pytest.approx(0.020, abs=1e-8)  # [m]
+    np.testing.assert_allclose(absolute.deformation, [0.020, 0.005, -0.003], atol=1e-8)
+    assert absolute.distinctness == pytest.approx(4.0, rel=1e-5)
+    np.testing.assert_allclose(absolute.extras["relative_change"], [1 / 3, 1.25, -0.1], atol=1e-6)
+    assert absolute.extras["resolution"] == pytest.approx(10 * 1e-7 * 0.080, rel=1e-6)  # E_T's largest [m]
+
+    relative = ellipsoid_closure_signature(p, criterion="relative")
+    assert relative.params["criterion"] == "relative" and relative.extras["magnitude_unit"] == "1"
+    assert same_line(relative.axis, frame[:, 2]) >= 1 - 1e-9  # the thin palm normal
+    assert relative.magnitude == pytest.approx(1.25, abs=1e-6)
+    np.testing.assert_allclose(relative.deformation, [1.25, 1 / 3, -0.1], atol=1e-6)
+    assert relative.distinctness == pytest.approx(3.75, rel=1e-5)
+    np.testing.assert_allclose(relative.extras["absolute_change"], [0.005, 0.020, -0.003], atol=1e-8)
+    assert relative.extras["resolution"] == pytest.approx(1e-6)
+
+    for cs in (absolute, relative):
+        assert follows_sign_rule(cs.axis)
+        np.testing.assert_allclose(cs.anchor, HAND_CENTRE, atol=1e-9)
+        assert cs.initial_ellipsoid is not None and cs.final_ellipsoid is not None
+        np.testing.assert_allclose(cs.initial_ellipsoid.semi_axes, initial, rtol=1e-6)
+        np.testing.assert_allclose(cs.final_ellipsoid.semi_axes, final, rtol=1e-6)
+        np.testing.assert_allclose(
+            cs.extras["absolute_change"],
+            np.asarray(cs.extras["half_width_final"]) - cs.extras["half_width_initial"],
+            rtol=1e-12,
+        )
+        # the same ellipsoids and the same per-axis changes, only elected differently
+        assert cs.initial_ellipsoid.to_json_dict() == absolute.initial_ellipsoid.to_json_dict()  # type: ignore[union-attr]
+
+
+def test_a_coplanar_open_hand_gets_an_in_plane_axis_by_the_absolute_criterion() -> None:
+    # a flat open hand (lifted by the MVEE's fallback) squeezed along x; closed, it is 2 cm thick along z
+    p0 = open_hand(np.eye(3))
+    p0[:, 2] = 0.09
+    p = close(p0, np.eye(3), np.array([0.6, 1.0, 1.0]), 5)
+    p[-1, :, 2] += np.linspace(-0.01, 0.01, p.shape[1])
+    absolute = ellipsoid_closure_signature(p)
+    relative = ellipsoid_closure_signature(p, criterion="relative")
+    assert absolute.extras["lifted_epsilon"]["initial"] > 0.0
+    np.testing.assert_allclose(absolute.axis, [1.0, 0.0, 0.0], atol=1e-6)
+    # the flat MVEE is the plane's minimum ellipse scaled by sqrt(3/2): a half-width of 60 mm x 1.22 along x
+    assert absolute.extras["half_width_initial"][0] == pytest.approx(0.06 * math.sqrt(1.5), rel=1e-6)
+    assert absolute.magnitude == absolute.extras["half_width_final"][0] - absolute.extras["half_width_initial"][0]
+    assert -0.06 < absolute.magnitude < -0.02  # [m]
+    np.testing.assert_allclose(relative.axis, [0.0, 0.0, 1.0], atol=1e-6)
+    assert relative.magnitude > 1e3  # of order 1 / lift_epsilon: the lifted normal always wins
+    lifted_z = relative.extras["half_width_initial"][0]
+    assert relative.extras["absolute_change"][0] == pytest.approx(relative.magnitude * lifted_z, rel=1e-9)
+
+
+@FAST
+@given(
+    q_hand=quaternions,
+    q_move=quaternions,
+    shift=st.tuples(*[st.floats(-0.5, 0.5)] * 3),
+    thin=st.floats(0.002, 0.02),
+    factors=st.tuples(*[st.floats(0.4, 2.5)] * 3),
+    seed=seeds,
+)
+def test_the_absolute_delta_is_invariant_under_rigid_motions_and_is_the_relative_one_times_a0(
+    q_hand: tuple[float, float, float, float],
+    q_move: tuple[float, float, float, float],
+    shift: tuple[float, float, float],
+    thin: float,
+    factors: tuple[float, float, float],
+    seed: int,
+) -> None:
+    frame = rotation(q_hand)
+    semi = np.array([0.07, 0.035, thin])
+    p = close(open_hand(frame, n_inner=4, seed=seed, semi_axes=semi), frame, np.array(factors), 6, noise=2e-4,
+              seed=seed)  # fmt: skip
+    r = rotation(q_move)
+    t = np.array(shift)
+    moved = p @ r.T + t
+
+    cs = ellipsoid_closure_signature(p)
+    cs2 = ellipsoid_closure_signature(moved)
+    mags = np.sort(np.abs(cs.deformation))
+    assume(mags[2] - mags[1] > 1e-5 and mags[1] - mags[0] > 1e-5)  # no near-ties: the axis order is defined
+    np.testing.assert_allclose(cs2.deformation, cs.deformation, rtol=1e-6, atol=1e-9)  # [m]
+    assert cs2.magnitude == pytest.approx(cs.magnitude, rel=1e-6)
+    assert cs2.distinctness == pytest.approx(cs.distinctness, rel=1e-5)
+    assert same_line(cs2.axis, r @ cs.axis) >= 1 - 1e-6  # the CS rotates with the input
+    for row, row2 in zip(cs.axes, cs2.axes, strict=True):
+        assert same_line(row2, r @ row) >= 1 - 1e-6
+    np.testing.assert_allclose(cs2.anchor, r @ cs.anchor + t, atol=1e-9)
+    np.testing.assert_allclose(cs2.extras["absolute_change"], cs.extras["absolute_change"], rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(cs2.extras["relative_change"], cs.extras["relative_change"], rtol=1e-6, atol=1e-9)
+
+    # absolute delta = relative delta x a_k(0), axis by axis, between the two criteria's signatures
+    rel = ellipsoid_closure_signature(p, criterion="relative")
+    a0 = np.asarray(rel.extras["half_width_initial"])
     for row, value in zip(cs.axes, cs.deformation, strict=True):
-        k = int(np.argmax(np.abs(series.axes @ row)))
-        assert series.relative_change[-1, k] == pytest.approx(value, abs=1e-7)
+        j = int(np.argmax(np.abs(rel.axes @ row)))
+        assert same_line(rel.axes[j], row) >= 1 - 1e-12
+        assert value == pytest.approx(rel.deformation[j] * a0[j], rel=1e-12, abs=1e-15)
+    np.testing.assert_allclose(
+        cs.extras["absolute_change"], np.asarray(cs.extras["relative_change"]) * cs.extras["half_width_initial"],
+        rtol=1e-12, atol=1e-15,
+    )  # fmt: skip
+    assert rel.initial_ellipsoid is not None and cs.initial_ellipsoid is not None
+    np.testing.assert_array_equal(rel.initial_ellipsoid.semi_axes, cs.initial_ellipsoid.semi_axes)
 
 
 # ------------------------------------------------------------------------------------------------- invariance
@@ -319,8 +476,15 @@ def test_json_form(method: str) -> None:
         for name in ("initial_ellipsoid", "final_ellipsoid"):
             assert set(data[name]) == {"center", "semi_axes", "axes"}
             np.testing.assert_allclose(np.linalg.norm(data[name]["axes"], axis=1), 1.0, atol=1e-12)
-        assert set(data["params"]) == {"tol", "max_iter", "lift_epsilon"}
+        assert set(data["params"]) == {"tol", "max_iter", "lift_epsilon", "criterion"}
+        assert data["params"]["criterion"] == "absolute" and data["extras"]["magnitude_unit"] == "m"
         assert data["extras"]["solver"]["initial"]["converged"] is True
+        for key in ("absolute_change", "relative_change", "half_width_initial", "half_width_final", "centre_drift"):
+            assert len(data["extras"][key]) == 3, key
+        assert data["extras"]["absolute_change"] == data["deformation"]
+    else:
+        assert "criterion" not in data["params"]
+        assert "absolute_change" not in data["extras"]
     assert set(data) == keys
     assert data["method"] == method
     assert data["frame_id"] == "hand"
@@ -413,6 +577,28 @@ def test_unknown_method() -> None:
     assert info.value.choices == ["ellipsoid", "mesh", "pca"]
 
 
+@pytest.mark.parametrize("method", METHODS)
+def test_unknown_criterion(method: str) -> None:
+    p = close(open_hand(np.eye(3)), np.eye(3), np.array([0.6, 1.0, 1.0]), 3)
+    with pytest.raises(InvalidInput) as info:
+        compute_closure_signature(trajectory(p), method, criterion="percent")  # type: ignore[arg-type]
+    assert info.value.field == "criterion"
+    assert info.value.value == "percent"
+    assert info.value.choices == ["absolute", "relative"]
+    with pytest.raises(InvalidInput, match="criterion"):
+        ellipsoid_closure_signature(p, criterion="Absolute")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("method", ["pca", "mesh"])
+def test_pca_and_mesh_ignore_the_criterion(method: str) -> None:
+    frame = rotation((0.4, 0.3, 0.2, 0.1))
+    traj = trajectory(close(open_hand(frame), frame, np.array([0.6, 0.9, 1.0]), 6, noise=1e-4))
+    results = [compute_closure_signature(traj, method, criterion=c) for c in CRITERIA]  # type: ignore[arg-type]
+    for cs in results:
+        assert "criterion" not in cs.params
+    assert results[0].to_json_dict() == results[1].to_json_dict()
+
+
 @pytest.mark.parametrize("fn", [ellipsoid_closure_signature, pca_closure_signature, mesh_closure_signature])
 def test_bad_positions_raise_invalid_trajectory(fn: object) -> None:
     p = close(open_hand(np.eye(3)), np.eye(3), np.array([0.6, 1.0, 1.0]), 3)
@@ -452,3 +638,16 @@ def test_plot_writes_an_image(tmp_path: Path, method: str) -> None:
     with pytest.raises(InvalidInput) as info:
         plot_closure_signature(traj, cs, tmp_path / "cs.bmp")
     assert info.value.field == "path"
+
+
+def test_plot_magnitude_label_names_the_unit_and_the_criterion() -> None:
+    frame = rotation((0.9, 0.2, 0.1, 0.3))
+    traj = trajectory(close(open_hand(frame), frame, np.array([0.6, 0.9, 1.0]), 4))
+    # 60 -> 36 mm along the first axis
+    assert (
+        magnitude_label(compute_closure_signature(traj, "ellipsoid")) == "-0.024 m (absolute change of the half-width)"
+    )
+    relative = compute_closure_signature(traj, "ellipsoid", criterion="relative")
+    assert magnitude_label(relative) == "-0.4 (relative change of the half-width)"
+    assert magnitude_label(compute_closure_signature(traj, "pca")).endswith(" m")
+    assert "change" not in magnitude_label(compute_closure_signature(traj, "mesh"))

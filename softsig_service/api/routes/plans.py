@@ -50,6 +50,8 @@ def make_plan(ctx: AppContext, body: PlanIn) -> dict[str, Any]:
         approach_distance=body.approach_distance,
         margin=body.margin,
         cs_method=body.cs_method,
+        cs_criterion=body.cs_criterion,
+        placement=body.placement,
     )
     with ctx.plan_lock:
         plan = ctx.planner.plan(request)

@@ -18,7 +18,9 @@ from softsig_service.api.deps import Ctx, IfMatchOptional, ReadAccess, WriteAcce
 from softsig_service.api.jobs import closure_signature, markers_signature
 from softsig_service.api.routes.common import READ, WRITE, Limit, Offset, problem
 from softsig_service.api.schemas import (
+    CRITERION_DESCRIPTION,
     HAND_NAME_PATTERN,
+    ClosureCriterion,
     ClosureSignatureIn,
     JobOut,
     SignatureIn,
@@ -40,6 +42,7 @@ def signature_summary(rec: repo.SignatureRecord) -> dict[str, Any]:
         "version": rec.version,
         "kind": rec.kind,
         "method": rec.method,
+        "criterion": rec.criterion,
         "source": rec.source,
         "hand_revision": rec.hand_revision,
         "etag": rec.etag,
@@ -51,6 +54,11 @@ def signature_summary(rec: repo.SignatureRecord) -> dict[str, Any]:
 def signature_out(rec: repo.SignatureRecord) -> dict[str, Any]:
     """The JSON of :class:`SignatureOut`."""
     return {**signature_summary(rec), "params": rec.params, "signature": rec.data}
+
+
+def _criterion_param(method: str, criterion: str) -> dict[str, str]:
+    """``{"criterion": ...}`` for the ellipsoid method (the only one that has a criterion), else nothing."""
+    return {"criterion": criterion} if method == "ellipsoid" else {}
 
 
 def _created(response: Response, rec: repo.SignatureRecord) -> dict[str, Any]:
@@ -80,18 +88,19 @@ async def create_signature(
     if_match: IfMatchOptional,
     body: Annotated[SignatureIn, Body()],
 ) -> Any:
-    """``{"kind": "closure", "method": "ellipsoid"|"pca"|"mesh"}``: simulate the hand's free closure (in a worker
-    process) and compute its closure signature. ``{"kind": "stiffness", "object": ...}``: grasp the object and
-    compute the stiffness signature, a long computation: 202 with the job (``Location: /v1/jobs/{id}``); the
-    signature is stored as a new version when the job succeeds (its result links to it). Closure: 201 with the
-    stored version, ``Location`` and ``ETag``."""
+    """``{"kind": "closure", "method": "ellipsoid"|"pca"|"mesh", "criterion": "absolute"|"relative"}``: simulate
+    the hand's free closure (in a worker process) and compute its closure signature (hand frame); ``criterion``
+    (ellipsoid only, default "absolute": deltas in metres) is stored in ``params``. ``{"kind": "stiffness",
+    "object": ...}``: grasp the object and compute the stiffness signature, a long computation: 202 with the job
+    (``Location: /v1/jobs/{id}``); the signature is stored as a new version when the job succeeds (its result
+    links to it). Closure: 201 with the stored version, ``Location`` and ``ETag``."""
     record = await run_in_threadpool(ctx.hand, hand)
     if isinstance(body, ClosureSignatureIn):
         result = await ctx.pool.run(
-            closure_signature, record.manifest_path, ctx.settings.limits, body.method,
+            closure_signature, record.manifest_path, ctx.settings.limits, body.method, body.criterion,
             what="simulating the closure", field="method",
         )  # fmt: skip
-        params = {"method": body.method, "closure": result["closure"]}
+        params = {"method": body.method, **_criterion_param(body.method, body.criterion), "closure": result["closure"]}
         rec = await run_in_threadpool(
             lambda: repo.add_signature(
                 ctx.registry, hand, kind="closure", method=body.method, source="simulation", data=result["signature"],
@@ -124,11 +133,13 @@ async def upload_markers(
     if_match: IfMatchOptional,
     file: Annotated[UploadFile, File(description="CSV time,point,x,y,z [s, m, hand frame] or trajectory JSON")],
     method: Annotated[Literal["ellipsoid", "pca", "mesh"], Form()] = "ellipsoid",
+    criterion: Annotated[ClosureCriterion, Form(description=CRITERION_DESCRIPTION)] = "absolute",
     strict_points: Annotated[
         bool, Form(description="point names must be the hand's reference points (all of them)")
     ] = True,
 ) -> dict[str, Any]:
-    """Compute the closure signature from tracked marker trajectories and store it as a new version."""
+    """Compute the closure signature from tracked marker trajectories (hand frame [m]) and store it as a new
+    version; ``criterion`` (ellipsoid only, default "absolute") is stored in ``params``."""
     record = await run_in_threadpool(ctx.hand, hand)
     name = file.filename or ""
     suffix = PurePath(name).suffix.lower()
@@ -145,11 +156,12 @@ async def upload_markers(
         raise InvalidTrajectory("the marker file is not UTF-8 text", field="file", value=name) from None
     expected = [p.get("name") for p in record.info.get("reference_points", [])] if strict_points else None
     result = await ctx.pool.run(
-        markers_signature, text, fmt, method, expected, hand, what="computing the signature from markers",
+        markers_signature, text, fmt, method, expected, hand, criterion, what="computing the signature from markers",
         field="file",
     )  # fmt: skip
     params = {
         "method": method,
+        **_criterion_param(method, criterion),
         "file": name,
         "sha256": hashlib.sha256(raw).hexdigest(),
         "strict_points": strict_points,
