@@ -14,12 +14,12 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from softsig_service.hands.closure import simulate_closure  # noqa: E402
-from softsig_service.hands.model import builtin_hand_names, load_hand  # noqa: E402
-from softsig_service.signatures.closure import ClosureSignature, compute_closure_signature  # noqa: E402
+from softsig_service.hands.closure import simulate_closure
+from softsig_service.hands.model import builtin_hand_names, load_hand
+from softsig_service.signatures.closure import ClosureSignature, compute_closure_signature
 
 
 def fmt_vec(v: np.ndarray) -> str:
