@@ -94,6 +94,24 @@ def test_infeasible_plan_is_a_result_not_an_error(api: TestClient) -> None:
     assert r.json()["joint_positions"] is None
 
 
+def test_plan_options_placement_and_criterion_reach_the_planner(api: TestClient) -> None:
+    body = {"hand": "pisa_iit_softhand", "object": BOX, "strategy": "S", "placement": "grasp_centre", "store": False}
+    plan = api.post("/v1/plans", json=body, headers=AUTH).json()
+    local = Planner().plan(
+        PlanRequest(
+            hand="pisa_iit_softhand", obj=builtin_object("box", x=0.5, y=0.05, yaw=0.4), strategy="S",
+            placement="grasp_centre",
+        )
+    )  # fmt: skip
+    assert plan["success"] and plan["solver"]["placement"] == "grasp_centre"
+    assert local.grasp_pose is not None
+    assert np.allclose(Pose.from_wire(plan["grasp_pose"]).matrix(), local.grasp_pose, atol=1e-9)
+    rel = {"hand": "pisa_iit_softhand", "object": BOX, "strategy": "C", "cs_criterion": "relative", "store": False}
+    plan = api.post("/v1/plans", json=rel, headers=AUTH).json()
+    assert plan["solver"]["cs_criterion"] == "relative"
+    assert not plan["success"] and "alignment_impossible" in plan["reasons"]  # the palm normal cannot be aligned
+
+
 def test_bad_plan_bodies_are_4xx_problems_naming_the_field(api: TestClient) -> None:
     ok = {"hand": "pisa_iit_softhand", "object": BOX, "strategy": "C"}
     cases = [
@@ -107,6 +125,8 @@ def test_bad_plan_bodies_are_4xx_problems_naming_the_field(api: TestClient) -> N
         ({**ok, "current_q": [0, 0, 0]}, "current_q[3]"),
         ({**ok, "current_q": [9, 0, 0, 0, 0, 0]}, "current_q[0]"),
         ({**ok, "approach_distance": 2.0}, "approach_distance"),
+        ({**ok, "placement": "middle"}, "placement"),
+        ({**ok, "cs_criterion": "biggest"}, "cs_criterion"),
         ({**ok, "object": {**BOX, "pose": {"x": 0.5, "roll": 1}}}, "object.pose.roll"),
         (
             {

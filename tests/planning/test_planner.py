@@ -151,3 +151,61 @@ def test_concurrent_plans_from_threads_match_sequential_ones(planner: Planner) -
     for a, b in zip(sequential * 2, parallel, strict=True):
         assert a.success == b.success
         assert a.joint_positions == b.joint_positions
+
+
+# --- placement: one hand point over the object's centre for S and C ---------------------------------------
+
+
+def _over_centre(plan: GraspPlan, point: np.ndarray, obj_center: np.ndarray) -> float:
+    """Horizontal distance [m] between the hand-frame ``point`` at the grasp pose and the object's centre."""
+    assert plan.grasp_pose is not None
+    world = plan.grasp_pose[:3, :3] @ point + plan.grasp_pose[:3, 3]
+    return float(np.linalg.norm(world[:2] - obj_center[:2]))
+
+
+@settings(max_examples=6, deadline=None)
+@given(yaw=st.floats(-math.pi, math.pi), x=st.floats(0.4, 0.55), y=st.floats(-0.2, 0.2))
+def test_s_and_c_put_the_same_hand_point_over_the_object_and_differ_in_yaw(
+    planner: Planner, yaw: float, x: float, y: float
+) -> None:
+    obj = builtin_object("box").with_pose(x, y, yaw)
+    model = planning_model("pisa_iit_softhand")
+    for placement, point in (("open_centre", model.open_centre), ("grasp_centre", model.grasp_centre)):
+        plans = {
+            s: planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy=s, placement=placement))  # type: ignore[arg-type]
+            for s in ("S", "C")
+        }
+        for s, plan in plans.items():
+            assert plan.success, (s, placement, plan.reasons)
+            assert _over_centre(plan, point, obj.center) <= 0.002, (s, placement)
+            assert plan.solver["placement"] == placement
+        # the yaws differ by the closure signature's tilt from the fingers' closing axis (hand y)
+        cs = model.signature.axis
+        tilt = axis_angle_between_lines(np.array([cs[0], cs[1], 0.0]), np.array([0.0, 1.0, 0.0]))
+        R_s, R_c = (plans[s].grasp_pose[:3, :3] for s in ("S", "C"))  # type: ignore[index]
+        assert abs(axis_angle_between_lines(R_s[:, 0], R_c[:, 0]) - tilt) <= math.radians(1.5)
+
+
+def test_the_default_placement_is_the_open_hand_centre_and_previous_keeps_the_old_rule(planner: Planner) -> None:
+    obj = builtin_object("cylinder")
+    model = planning_model("pisa_iit_softhand")
+    assert np.allclose(model.open_centre, model.signature.anchor)  # c_0 is the ellipsoid CS's anchor
+    assert model.grasp_centre[1] > model.open_centre[1] + 0.03  # c_T: pulled toward the wrist by the fist
+    default = planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy="S"))
+    assert default.solver["placement"] == "open_centre"
+    assert _over_centre(default, model.open_centre, obj.center) <= 0.002
+    previous = planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy="S", placement="previous"))
+    assert _over_centre(previous, model.bbox_center, obj.center) <= 0.002
+    with pytest.raises(InvalidInput) as info:
+        PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy="S", placement="middle")  # type: ignore[arg-type]
+    assert info.value.field == "placement" and "open_centre" in (info.value.choices or ())
+
+
+def test_the_cs_criterion_reaches_the_plan(planner: Planner) -> None:
+    obj = builtin_object("box")
+    absolute = planning_model("pisa_iit_softhand").signature
+    relative = planning_model("pisa_iit_softhand", "ellipsoid", None, "relative").signature
+    assert abs(absolute.axis[2]) < 0.2 < 0.9 < abs(relative.axis[2])  # in the palm plane vs the palm normal
+    plan = planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy="C", cs_criterion="relative"))
+    assert not plan.success and "alignment_impossible" in plan.reasons
+    assert plan.solver["cs_criterion"] == "relative"
