@@ -92,6 +92,9 @@ class TrialSpec:
     x: float
     y: float
     yaw: float
+    cs_method: str = "ellipsoid"
+    criterion: str = "absolute"
+    placement: str = "open_centre"
 
     @property
     def key(self) -> str:
@@ -108,7 +111,10 @@ def trial_seed(seed: int, cell: Sequence[int], trial: int) -> int:
 
 @dataclass(frozen=True)
 class CampaignSpec:
-    """A campaign grid. ``objects`` are built-in names (DESIGN §7) placed at ``(x, y, yaw)`` [m, m, rad]."""
+    """A campaign grid. ``objects`` are built-in names (DESIGN §7) placed at ``(x, y, yaw)`` [m, m, rad].
+
+    ``cs_method`` ("ellipsoid" | "pca" | "mesh"), ``criterion`` (the ellipsoid CS's "absolute" | "relative") and
+    ``placement`` ("open_centre" | "grasp_centre" | "previous") are passed to every plan (see :class:`PlanRequest`)."""
 
     hand: str = "pisa_iit_softhand"
     conditions: tuple[Condition, ...] = TABLE1_CONDITIONS
@@ -119,9 +125,19 @@ class CampaignSpec:
     x: float = 0.5
     y: float = 0.0
     yaw: float = 0.0
+    cs_method: str = "ellipsoid"
+    criterion: str = "absolute"
+    placement: str = "open_centre"
 
     def __post_init__(self) -> None:
         from softsig_service.planning.objects import BUILTIN_NAMES
+        from softsig_service.planning.planner import PLACEMENTS
+        from softsig_service.signatures.closure import CRITERIA, METHODS
+
+        for name, value, choices in (("cs_method", self.cs_method, METHODS), ("criterion", self.criterion, CRITERIA),
+                                     ("placement", self.placement, PLACEMENTS)):  # fmt: skip
+            if value not in choices:
+                raise InvalidInput(f"unknown {name}", field=name, value=value, choices=tuple(choices))
 
         if self.trials < 1:
             raise InvalidInput("need at least one trial per cell", field="trials", value=self.trials)
@@ -162,6 +178,9 @@ class CampaignSpec:
                                 x=self.x,
                                 y=self.y,
                                 yaw=self.yaw,
+                                cs_method=self.cs_method,
+                                criterion=self.criterion,
+                                placement=self.placement,
                             )
                         )
         return out
@@ -187,6 +206,9 @@ class CampaignSpec:
             x=float(d["x"]),
             y=float(d["y"]),
             yaw=float(d["yaw"]),
+            cs_method=str(d.get("cs_method", "ellipsoid")),
+            criterion=str(d.get("criterion", "absolute")),
+            placement=str(d.get("placement", "previous")),
         )
 
 
@@ -211,6 +233,7 @@ def run_trial_spec(spec: TrialSpec) -> dict[str, Any]:
         seed=spec.seed,
         sigma_r=spec.sigma_r,
         sigma_t=spec.sigma_t,
+        plan_options={"cs_method": spec.cs_method, "cs_criterion": spec.criterion, "placement": spec.placement},
     )
     record = result.to_json_dict()
     record.update(key=spec.key, index=spec.index, condition=spec.condition, trial=spec.trial, pid=os.getpid())
@@ -569,7 +592,9 @@ def report_markdown(spec: CampaignSpec, summary: Mapping[str, Any], wall_time: f
     lines = [f"# Validation campaign: {spec.hand}", ""]
     lines.append(
         f"{spec.trials} trials per cell, campaign seed {spec.seed}, objects at x = {spec.x} m, "
-        f"y = {spec.y} m, yaw = {spec.yaw} rad (nominal)."
+        f"y = {spec.y} m, yaw = {spec.yaw} rad (nominal). Closure signature: {spec.cs_method} method"
+        f"{', ' + spec.criterion + ' criterion' if spec.cs_method == 'ellipsoid' else ''}; placement: "
+        f"{spec.placement}."
     )
     if wall_time is not None:
         lines.append(f"Wall time of the last run: {wall_time:.1f} s.")
@@ -692,6 +717,9 @@ CSV_COLUMNS: tuple[str, ...] = (
     "max_lift",
     "touching_after_close",
     "touching_end",
+    "touching_table_end",
+    "sag",
+    "slip",
     "d_yaw",
     "dx",
     "dy",

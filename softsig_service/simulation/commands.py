@@ -197,14 +197,58 @@ def table1(
     address: Annotated[str | None, typer.Option("--address", help="Ray cluster address (default: local)")] = None,
     progress: Annotated[bool, typer.Option("--progress/--no-progress", help="progress bar on stderr")] = True,
     as_json: Annotated[bool, typer.Option("--json", help="print the summary as JSON")] = False,
+    cs_method: Annotated[str, typer.Option("--cs-method", help="closure signature for C: ellipsoid | pca | mesh")] = (
+        "ellipsoid"
+    ),
+    criterion: Annotated[
+        str, typer.Option("--criterion", help="ellipsoid CS criterion: absolute (DESIGN §4) | relative")
+    ] = "absolute",
+    placement: Annotated[
+        str,
+        typer.Option(
+            "--placement", help="open_centre | grasp_centre (both strategies, same point) | previous (per strategy)"
+        ),
+    ] = "open_centre",
+    conditions: Annotated[
+        str | None,
+        typer.Option("--conditions", help="indices of the Table I conditions to run, e.g. 2 or 0,2 (default all)"),
+    ] = None,
+    strategies: Annotated[str, typer.Option("--strategies", help="comma-separated strategies: S,C (default)")] = (
+        "S,C"
+    ),
 ) -> None:
     """Run the paper's Table I in simulation: 3 uncertainty levels x box, apple, cylinder x S, C."""
     with _errors():
-        from softsig_service.simulation.campaign import BACKENDS, CampaignSpec, read_records, run_campaign
+        from softsig_service.simulation.campaign import (
+            BACKENDS,
+            TABLE1_CONDITIONS,
+            CampaignSpec,
+            read_records,
+            run_campaign,
+        )
 
         if backend not in BACKENDS:
             raise InvalidInput("unknown backend", field="backend", value=backend, choices=BACKENDS)
-        spec = CampaignSpec(hand=hand, trials=trials, seed=seed)
+        chosen = TABLE1_CONDITIONS
+        if conditions is not None:
+            try:
+                idx = [int(v) for v in conditions.split(",") if v.strip()]
+            except ValueError:
+                raise InvalidInput("comma-separated integers", field="conditions", value=conditions) from None
+            valid = tuple(range(len(TABLE1_CONDITIONS)))
+            if not idx or any(i not in valid for i in idx):
+                raise InvalidInput("unknown condition index", field="conditions", value=conditions, choices=valid)
+            chosen = tuple(TABLE1_CONDITIONS[i] for i in sorted(set(idx)))
+        spec = CampaignSpec(
+            hand=hand,
+            trials=trials,
+            seed=seed,
+            conditions=chosen,
+            strategies=tuple(s.strip() for s in strategies.split(",") if s.strip()),
+            cs_method=cs_method,
+            criterion=criterion,
+            placement=placement,
+        )
         try:
             result = run_campaign(
                 spec,

@@ -21,11 +21,25 @@ The sequence (DESIGN §7), all in the world frame (UR5 ``base_link``, z up), SI 
    :attr:`RolloutConfig.lift_time` [s]; the closure command stays closed.
 7. **Hold** for :attr:`RolloutConfig.hold_time` [s] (1 s).
 
-**Judge** (DESIGN §7): success iff the object's centre rose by at least ``success_fraction * lift``
-(80 % of 0.15 m = 0.12 m) between the start of the trial and its end AND the object touches the hand at the
-end (a MuJoCo contact, distance <= 0, between an object geom and a hand geom), and the trial was not stopped
-before: a failed plan, a diverged simulation or an arm collision (the issue's reasons) fail it whatever the
-object did. A failed trial says why, checked in this order:
+**Judge** (DESIGN §7): success iff the hand **carries** the object at the end of the hold, i.e. all of
+
+* the object touches the hand (a MuJoCo contact, distance <= 0, between an object geom and a hand geom);
+* the object is off the table (no contact, distance <= 0, between an object geom and the table);
+* the object's centre rose by at least ``success_fraction * lift`` (half of 0.15 m = 0.075 m) between the
+  start of the trial and the end of the hold,
+
+and the trial was not stopped before: a failed plan, a diverged simulation or an arm collision fail it
+whatever the object did. A compliant hand lets a carried object sag and slip; both are reported as figures
+(:class:`TrialResult`), never as a reason to fail a carried object:
+
+* **sag** [m] = ``lift`` - rise: how far the object's centre stayed below the flange's rise (0 for an object
+  that moved exactly with the flange; about ``lift`` for an object left on the table);
+* **slip** [m] = ``|p_end - p_hold|``, where ``p = R_flange^T (c_object - o_flange)`` is the position of the
+  object's centre expressed in the flange (``tool0`` = hand) frame, taken at the start of the hold
+  (``p_hold``, the end of the lift) and at its end (``p_end``): the object's displacement relative to the hand
+  during the hold (0 for ``hold_time`` = 0).
+
+A failed trial says why, checked in this order:
 
 * the plan's first reason (``unreachable``, ``unreachable:approach``, ``collision:table``,
   ``alignment_impossible``...), or ``unreachable:approach`` / ``unreachable:lift`` if the IK along the approach
@@ -34,10 +48,11 @@ object did. A failed trial says why, checked in this order:
 * ``arm_collision``: an arm link (not the hand) touched the table at any control tick, or the object before
   the lift (during the approach or the closure). Once the object is in the hand, its contacts with the arm's
   wrist (held against the flange, or falling past it) are not arm collisions;
-* ``not_lifted``: the object touches the hand at the end but rose less than the threshold (it slid in the
-  hand, hangs low, or stays on the table);
-* ``dropped``: the object touched the hand at the end of the closure but not at the end of the trial;
-* ``no_contact``: the object touched the hand neither at the end of the closure nor at the end.
+* ``not_lifted``: the object touches the hand at the end but still touches the table or rose less than the
+  threshold (it stays on the table, is dragged along it, or hangs low);
+* ``dropped``: the object touched the hand at the end of the closure or at some control tick of the lift or
+  the hold, but not at the end of the hold;
+* ``no_contact``: the object touched the hand neither at the end of the closure nor at any time after it.
 
 A trial is deterministic for a seed: same seed, same perturbation, same plan, same simulation, same outcome
 (MuJoCo is deterministic on one machine and build).
@@ -49,7 +64,7 @@ import dataclasses
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -86,7 +101,8 @@ class RolloutConfig:
 
     Attributes:
         lift: [m] height the flange rises after closing (DESIGN §7: 0.15).
-        success_fraction: the object must rise by at least this fraction of ``lift`` (DESIGN §7: 0.8).
+        success_fraction: a carried object must have risen by at least this fraction of ``lift``
+            (DESIGN §7: 0.5, i.e. 0.075 m of a 0.15 m lift).
         approach_time: [s] duration of the straight approach from the pre-grasp to the grasp.
         lift_time: [s] duration of the lift.
         hold_time: [s] duration of the hold at the top (DESIGN §7: 1 s).
@@ -96,7 +112,7 @@ class RolloutConfig:
     """
 
     lift: float = 0.15
-    success_fraction: float = 0.8
+    success_fraction: float = 0.5
     approach_time: float = 1.0
     lift_time: float = 1.0
     hold_time: float = 1.0
@@ -153,6 +169,12 @@ class TrialResult:
         max_lift: [m] the largest rise seen at any control tick.
         touching_end: object-hand contact at the end. touching_after_close: object-hand contact at the end
             of the closure.
+        touching_table_end: object-table contact at the end (a carried object has none).
+        touched_in_lift: object-hand contact at some control tick of the lift or the hold.
+        sag: [m] ``lift - lift_height`` at the end of the hold (module docstring); None when the simulation
+            did not reach the end (not simulated, or diverged).
+        slip: [m] the object's displacement relative to the flange frame during the hold (module
+            docstring); None when the simulation did not reach the end.
         perturbation: the drawn object offset. plan_reasons: the planner's reasons (empty: plan feasible).
         sim_time: [s] simulated time. wall_time: [s] wall time of the whole trial (plan + IK + simulation).
         timing: [s] wall time per part: ``plan``, ``ik``, ``sim``.
@@ -177,6 +199,10 @@ class TrialResult:
     wall_time: float
     timing: dict[str, float] = field(default_factory=dict)
     arm_collision_time: float | None = None
+    touching_table_end: bool = False
+    touched_in_lift: bool = False
+    sag: float | None = None
+    slip: float | None = None
 
     def to_json_dict(self) -> dict[str, Any]:
         """A flat JSON record (units: m, rad, s)."""
@@ -199,6 +225,10 @@ class TrialResult:
             "wall_time": self.wall_time,
             "timing": dict(self.timing),
             "arm_collision_time": self.arm_collision_time,
+            "touching_table_end": self.touching_table_end,
+            "touched_in_lift": self.touched_in_lift,
+            "sag": self.sag,
+            "slip": self.slip,
         }
 
 
@@ -267,12 +297,14 @@ def run_trial(
     plan: GraspPlan | None = None,
     on_frame: FrameCallback | None = None,
     frame_period: float = 1.0 / 30.0,
+    plan_options: Mapping[str, Any] | None = None,
 ) -> TrialResult:
     """Run one trial (module docstring) of ``hand`` grasping ``obj`` (its nominal pose) with ``strategy``.
 
     ``sigma_r`` [rad] and ``sigma_t`` [m] are the standard deviations of the object's yaw and x, y offsets;
     ``seed`` seeds them. ``plan`` skips planning (a plan for the same hand, object and strategy, e.g. to test
     a moved plan). ``on_frame`` is called every ``frame_period`` [s] of sim time (videos, frames).
+    ``plan_options`` are further :class:`PlanRequest` fields (``cs_method``, ``cs_criterion``, ``placement``...).
     Raises :class:`InvalidInput` for negative sigmas; never for an infeasible plan or a failed grasp.
     """
     t_wall = time.perf_counter()
@@ -293,7 +325,7 @@ def run_trial(
 
     t0 = time.perf_counter()
     if plan is None:
-        plan = planner.plan(PlanRequest(hand=hand, obj=obj, strategy=strategy))
+        plan = planner.plan(PlanRequest(hand=hand, obj=obj, strategy=strategy, **dict(plan_options or {})))
     t_plan = time.perf_counter() - t0
 
     def early(reason: str, timing: dict[str, float]) -> TrialResult:
@@ -337,20 +369,7 @@ def run_trial(
     sim = _simulate(scene, pert.apply(obj), approach, lift, cfg, on_frame, frame_period)
     t_sim = time.perf_counter() - t0
 
-    threshold = cfg.success_fraction * cfg.lift
-    reason: str | None
-    if sim.unstable:
-        reason = "sim_unstable"
-    elif sim.arm_collision_time is not None:
-        reason = "arm_collision"
-    elif sim.rise >= threshold and sim.touching_end:
-        reason = None
-    elif sim.touching_end:
-        reason = "not_lifted"
-    elif sim.touching_after_close:
-        reason = "dropped"
-    else:
-        reason = "no_contact"
+    reason = judge(sim, cfg)
     return TrialResult(
         success=reason is None,
         reason=reason,
@@ -364,19 +383,56 @@ def run_trial(
         wall_time=time.perf_counter() - t_wall,
         timing={"plan": t_plan, "ik": t_ik, "sim": t_sim},
         arm_collision_time=sim.arm_collision_time,
+        touching_table_end=sim.touching_table_end,
+        touched_in_lift=sim.touched_in_lift,
+        sag=None if sim.unstable else cfg.lift - sim.rise,
+        slip=sim.slip,
         **common,
     )
 
 
 @dataclass
-class _SimOutcome:
+class SimOutcome:
+    """What a simulated trial records for the judge (world frame, SI units).
+
+    Attributes:
+        rise: [m] rise of the object's centre from the start of the trial to the end of the hold.
+        max_rise: [m] the largest rise at any control tick.
+        touching_end: object-hand contact at the end of the hold.
+        touching_table_end: object-table contact at the end of the hold.
+        touching_after_close: object-hand contact at the end of the closure.
+        touched_in_lift: object-hand contact at some control tick of the lift or the hold.
+        arm_collision_time: [s] sim time of the first arm collision (None: none).
+        unstable: the simulation diverged.
+        sim_time: [s] simulated time.
+        slip: [m] the object's displacement in the flange frame during the hold (None: not reached).
+    """
+
     rise: float = 0.0
     max_rise: float = 0.0
     touching_end: bool = False
+    touching_table_end: bool = False
     touching_after_close: bool = False
+    touched_in_lift: bool = False
     arm_collision_time: float | None = None
     unstable: bool = False
     sim_time: float = 0.0
+    slip: float | None = None
+
+
+def judge(sim: SimOutcome, cfg: RolloutConfig) -> str | None:
+    """The verdict on a simulated trial: None if the hand carries the object, else the reason (module
+    docstring, DESIGN §7). Sag and slip never fail a carried object."""
+    if sim.unstable:
+        return "sim_unstable"
+    if sim.arm_collision_time is not None:
+        return "arm_collision"
+    if sim.touching_end:
+        carried = not sim.touching_table_end and sim.rise >= cfg.success_fraction * cfg.lift
+        return None if carried else "not_lifted"
+    if sim.touching_after_close or sim.touched_in_lift:
+        return "dropped"
+    return "no_contact"
 
 
 def _simulate(
@@ -387,12 +443,12 @@ def _simulate(
     cfg: RolloutConfig,
     on_frame: FrameCallback | None,
     frame_period: float,
-) -> _SimOutcome:
+) -> SimOutcome:
     """Step the scene through approach, close, lift and hold; record what the judge needs."""
     model = scene.model
     data = scene.make_data(approach[0], obj.primitive_pose)
     z0 = float(scene.object_position(data)[2])
-    out = _SimOutcome()
+    out = SimOutcome()
     dt = float(model.opt.timestep)
     nsub = max(1, round(cfg.control_period / dt))
     tick = nsub * dt
@@ -412,8 +468,9 @@ def _simulate(
     ) -> bool:
         """Run ``duration`` [s] with targets as functions of the phase time; False if it diverged.
 
-        ``grasping``: the object is (meant to be) in the hand, so its contacts with the arm's links (held
-        against the flange, or falling past the wrist) are not arm collisions."""
+        ``grasping``: the object is (meant to be) in the hand (lift and hold), so its contacts with the arm's
+        links (held against the flange, or falling past the wrist) are not arm collisions, and its contacts
+        with the hand are recorded in ``touched_in_lift``."""
         n = max(1, math.ceil(duration / tick - 1e-9))
         for k in range(n):
             t = (k + 1) * tick  # targets of the end of the tick (servos lead by one tick)
@@ -427,6 +484,8 @@ def _simulate(
             arm_hit = contacts.arm_table or (contacts.arm_object and not grasping)
             if arm_hit and out.arm_collision_time is None:
                 out.arm_collision_time = float(data.time)
+            if grasping and contacts.object_hand:
+                out.touched_in_lift = True
             out.max_rise = max(out.max_rise, float(scene.object_position(data)[2]) - z0)
             frame()
         return True
@@ -448,11 +507,14 @@ def _simulate(
     if ok:
         out.touching_after_close = scene.contact_summary(data).object_hand
     ok = ok and phase(cfg.lift_time, lambda t: _interp(lift, _quintic(t / cfg.lift_time)), closed_hand, True)
+    p_hold = scene.object_in_flange(data)  # the object in the hand frame at the start of the hold
     ok = ok and (cfg.hold_time <= 0.0 or phase(cfg.hold_time, lambda _t: q_top, closed_hand, True))
     out.sim_time = float(data.time)
     if ok:
         out.rise = float(scene.object_position(data)[2]) - z0
         out.touching_end = scene.contact_summary(data).object_hand
+        out.touching_table_end = scene.object_touches_table(data)
+        out.slip = float(np.linalg.norm(scene.object_in_flange(data) - p_hold))
     return out
 
 

@@ -197,6 +197,23 @@ class Scene:
 
         return ContactSummary(pair(GEOM_OBJECT, GEOM_HAND), pair(GEOM_ARM, GEOM_TABLE), pair(GEOM_ARM, GEOM_OBJECT))
 
+    def object_touches_table(self, data: mujoco.MjData) -> bool:
+        """Whether an object geom touches the table in the current contacts (distance <= 0)."""
+        n = data.ncon
+        if n == 0:
+            return False
+        con = data.contact
+        cls = self.geom_class[con.geom[:n]][con.dist[:n] <= 0.0]
+        hit = ((cls[:, 0] == GEOM_OBJECT) & (cls[:, 1] == GEOM_TABLE)) | (
+            (cls[:, 0] == GEOM_TABLE) & (cls[:, 1] == GEOM_OBJECT)
+        )
+        return bool(np.any(hit))
+
+    def object_in_flange(self, data: mujoco.MjData) -> FloatArray:
+        """Position [m] of the object's centre in the flange (``tool0`` = hand) frame."""
+        R = data.xmat[self.flange_body].reshape(3, 3)
+        return np.asarray(R.T @ (data.xpos[self.object_body] - data.xpos[self.flange_body]), dtype=np.float64)
+
     @functools.cached_property
     def geom_class(self) -> NDArray[np.int8]:
         """Per geom: :data:`GEOM_OTHER`, :data:`GEOM_OBJECT`, :data:`GEOM_HAND`, :data:`GEOM_ARM` or

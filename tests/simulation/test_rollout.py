@@ -22,13 +22,15 @@ from softsig_service.simulation.rollout import (
     REASONS,
     Perturbation,
     RolloutConfig,
+    SimOutcome,
     TrialResult,
     default_planner,
+    judge,
     run_trial,
     shift_plan,
 )
 
-LIFT_THRESHOLD = 0.8 * 0.15
+LIFT_THRESHOLD = 0.5 * 0.15  # DESIGN §7: a carried object rose by at least half the 0.15 m lift
 
 
 def _comparable(r: TrialResult) -> dict[str, Any]:
@@ -39,13 +41,65 @@ def _comparable(r: TrialResult) -> dict[str, Any]:
 
 
 @pytest.mark.parametrize("strategy", ["S", "C"])
-def test_parallel_gripper_lifts_the_box_from_a_nominal_plan(strategy: str) -> None:
+def test_parallel_gripper_carries_the_box_from_a_nominal_plan(strategy: str) -> None:
+    """The judge on a nominal rigid grasp: carried (touching the hand, off the table, risen), with a sag and a
+    slip that are small, reported, and consistent with the rise."""
     r = run_trial("parallel_gripper", builtin_object("box"), strategy, seed=0)  # type: ignore[arg-type]
     assert r.success, r
     assert r.reason is None
     assert r.lift_height >= LIFT_THRESHOLD
-    assert r.touching_end and r.touching_after_close
+    assert r.touching_end and r.touching_after_close and r.touched_in_lift
+    assert not r.touching_table_end
     assert r.sim_time == pytest.approx(1.0 + 1.5 + 1.0 + 1.0, abs=0.011)  # approach, close + settle, lift, hold
+    # a rigid gripper moves the box with the flange: sag and slip of a few millimetres at most
+    assert r.sag is not None and r.slip is not None
+    assert r.sag == pytest.approx(0.15 - r.lift_height)
+    assert -0.001 < r.sag < 0.005
+    assert 0.0 <= r.slip < 0.002
+    d = json.loads(json.dumps(r.to_json_dict()))
+    assert d["sag"] == pytest.approx(r.sag) and d["slip"] == pytest.approx(r.slip)
+    assert d["touching_table_end"] is False and d["touched_in_lift"] is True
+
+
+def test_the_threshold_is_half_the_lift_and_sag_alone_never_fails_a_carried_object() -> None:
+    """The same simulated grasp is judged against the configured fraction: the box rises a little less than
+    the flange (sag > 0), so demanding the full lift fails it as ``not_lifted`` while the default passes it."""
+    obj = builtin_object("box")
+    r = run_trial("parallel_gripper", obj, "S", seed=0)
+    strict = run_trial("parallel_gripper", obj, "S", seed=0, config=RolloutConfig(success_fraction=1.0))
+    assert RolloutConfig().success_fraction == 0.5
+    assert strict.lift_height == r.lift_height and strict.sag == r.sag and r.sag is not None and r.sag > 0.0
+    assert r.success and not strict.success and strict.reason == "not_lifted"
+
+
+def _sim(**kw: Any) -> SimOutcome:
+    base: dict[str, Any] = {"rise": 0.14, "max_rise": 0.145, "touching_end": True, "touching_after_close": True,
+                            "touched_in_lift": True, "sim_time": 4.5, "slip": 0.0}  # fmt: skip
+    base.update(kw)
+    return SimOutcome(**base)
+
+
+def test_judge_carried_means_touching_off_the_table_and_half_the_lift() -> None:
+    cfg = RolloutConfig()
+    assert judge(_sim(), cfg) is None
+    # a compliant hand: 7 cm of sag and 2 cm of slip during the hold still carry the object
+    assert judge(_sim(rise=0.08, slip=0.02), cfg) is None
+    assert judge(_sim(rise=0.075), cfg) is None
+    assert judge(_sim(rise=0.074), cfg) == "not_lifted"
+    # touching the hand but still on the table (dragged, tipped up): not carried, whatever the rise
+    assert judge(_sim(touching_table_end=True), cfg) == "not_lifted"
+    assert judge(_sim(rise=0.0, touching_table_end=True), cfg) == "not_lifted"
+    # lost during the lift or the hold
+    assert judge(_sim(rise=0.0, touching_end=False), cfg) == "dropped"
+    assert judge(_sim(rise=0.0, touching_end=False, touching_after_close=False), cfg) == "dropped"
+    assert judge(_sim(rise=0.0, touching_end=False, touching_after_close=False, touched_in_lift=False), cfg) == (
+        "no_contact"
+    )
+    # stopped trials fail whatever the object did, diverged first
+    assert judge(_sim(arm_collision_time=1.2), cfg) == "arm_collision"
+    assert judge(_sim(unstable=True, arm_collision_time=1.2), cfg) == "sim_unstable"
+    for s in (_sim(rise=0.0, touching_end=False), _sim(touching_table_end=True), _sim(unstable=True)):
+        assert judge(s, cfg) in REASONS
 
 
 @pytest.mark.parametrize("strategy", ["S", "C"])
@@ -53,16 +107,6 @@ def test_softhand_lifts_the_apple_from_a_nominal_plan(strategy: str) -> None:
     r = run_trial("pisa_iit_softhand", builtin_object("apple"), strategy, seed=0)  # type: ignore[arg-type]
     assert r.success, r
     assert r.lift_height >= LIFT_THRESHOLD and r.touching_end
-
-
-@pytest.mark.xfail(
-    strict=True,
-    reason="known limitation of the SoftHand model with the planner's top grasp (docs/experiment_table1.md): the "
-    "fingers close above the 5 cm box and roll it against the wrist stub; it slips out when lifted",
-)
-def test_softhand_lifts_the_box_from_a_nominal_plan() -> None:
-    r = run_trial("pisa_iit_softhand", builtin_object("box"), "S", seed=0)
-    assert r.success, r
 
 
 @pytest.mark.parametrize("hand", ["parallel_gripper", "pisa_iit_softhand"])
@@ -78,7 +122,8 @@ def test_a_plan_moved_10_cm_off_fails_with_a_reason(hand: str) -> None:
     assert not r.success
     assert r.reason == "no_contact"
     assert r.reason in REASONS
-    assert abs(r.lift_height) < 0.01 and not r.touching_end
+    assert abs(r.lift_height) < 0.01 and not r.touching_end and not r.touched_in_lift
+    assert r.touching_table_end and r.sag == pytest.approx(0.15 - r.lift_height)
 
 
 def test_same_seed_same_outcome() -> None:
@@ -120,6 +165,7 @@ def test_an_unreachable_object_fails_in_planning() -> None:
     assert not r.success
     assert r.reason == "unreachable" and r.plan_reasons == ["unreachable"]
     assert r.sim_time == 0.0 and r.lift_height == 0.0
+    assert r.sag is None and r.slip is None
 
 
 def test_bad_input_raises() -> None:
@@ -132,10 +178,11 @@ def test_bad_input_raises() -> None:
 
 
 def test_shorter_lift_is_judged_against_its_own_threshold() -> None:
-    """The judge uses the configured lift: a 5 cm lift needs 4 cm of rise."""
+    """The judge uses the configured lift: a 5 cm lift needs 2.5 cm of rise, and sag is measured against it."""
     cfg = RolloutConfig(lift=0.05, hold_time=0.2)
     r = run_trial("parallel_gripper", builtin_object("box"), "S", seed=0, config=cfg)
     assert r.success and 0.04 <= r.lift_height <= 0.051
+    assert r.sag == pytest.approx(0.05 - r.lift_height)
 
 
 # -- the validate command ------------------------------------------------------------------------------------
