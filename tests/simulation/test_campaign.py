@@ -263,3 +263,26 @@ def test_experiment_table1_command(tmp_path: Path) -> None:
     assert bad.exit_code == 2 and "unknown backend" in bad.output
     other = CliRunner().invoke(app, ["experiment", "table1", "--trials", "2", "--out", str(tmp_path)])
     assert other.exit_code == 2 and "different campaign" in other.output
+
+
+def test_experiment_options_are_recorded_and_passed_to_every_plan(tmp_path: Path) -> None:
+    app = typer.Typer(pretty_exceptions_enable=False)
+    app.add_typer(experiment_app, name="experiment")
+    args = ["experiment", "table1", "--trials", "1", "--seed", "5", "--out", str(tmp_path), "--workers", "1",
+            "--no-progress", "--conditions", "2", "--strategies", "C", "--cs-method", "ellipsoid",
+            "--criterion", "relative", "--placement", "previous"]  # fmt: skip
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    spec = json.loads((tmp_path / "campaign.json").read_text(encoding="utf-8"))
+    assert spec["conditions"] == [[0.2, 0.02]] and spec["strategies"] == ["C"]
+    assert (spec["cs_method"], spec["criterion"], spec["placement"]) == ("ellipsoid", "relative", "previous")
+    assert "relative criterion; placement: previous" in res.stdout
+    records = [json.loads(ln) for ln in _lines(tmp_path / "trials.jsonl")]
+    assert len(records) == 3
+    # the relative criterion elects the SoftHand's palm normal, which a top grasp cannot align: every C plan fails
+    assert all(r["reason"] == "alignment_impossible" for r in records)
+    for bad_args, message in ((["--conditions", "5"], "unknown condition index"),
+                              (["--placement", "middle"], "unknown placement"),
+                              (["--criterion", "largest"], "unknown criterion")):  # fmt: skip
+        bad = CliRunner().invoke(app, ["experiment", "table1", "--out", str(tmp_path / "x"), *bad_args])
+        assert bad.exit_code == 2 and message in bad.output, bad.output
