@@ -110,6 +110,11 @@ def validate(
     video: Annotated[Path | None, typer.Option("--video", help="write an MP4 of the trials (needs imageio)")] = None,
     frames: Annotated[Path | None, typer.Option("--frames", help="write PNG frames into DIR/trial_NNN/")] = None,
     fps: Annotated[float, typer.Option("--fps", help="frames per second of sim time", min=1.0, max=500.0)] = 30.0,
+    cs_method: Annotated[str, typer.Option("--cs-method", help="ellipsoid | pca | mesh")] = "ellipsoid",
+    criterion: Annotated[str, typer.Option("--criterion", help="ellipsoid CS: absolute | relative")] = "absolute",
+    placement: Annotated[
+        str, typer.Option("--placement", help="open_centre | grasp_centre | previous (hand point over the object)")
+    ] = "open_centre",
 ) -> None:
     """Plan a top grasp on the nominal object pose and simulate it in MuJoCo, under pose noise if asked."""
     with _errors():
@@ -133,6 +138,7 @@ def validate(
                     sigma_t=sigma_t,
                     on_frame=recorder,
                     frame_period=1.0 / fps,
+                    plan_options={"cs_method": cs_method, "cs_criterion": criterion, "placement": placement},
                 )
                 results.append(result)
                 if recorder is not None:
@@ -148,6 +154,7 @@ def validate(
             "sigma_r": sigma_r,
             "sigma_t": sigma_t,
             "seed": seed,
+            "plan_options": {"cs_method": cs_method, "criterion": criterion, "placement": placement},
             "trials": trials,
             "successes": successes,
             "outcomes": [
