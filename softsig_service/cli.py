@@ -12,6 +12,7 @@ from softsig_service.gl_backend import prepare_mujoco
 
 prepare_mujoco()  # headless EGL by default; must run before anything imports MuJoCo
 
+from softsig_service.cli_support import CriterionOption, CsMethodOption, PlacementOption, plan_options  # noqa: E402
 from softsig_service.cli_support import emit as _emit  # noqa: E402
 from softsig_service.cli_support import errors_to_exit as _errors  # noqa: E402
 from softsig_service.cli_support import parse_object as _object_arg  # noqa: E402
@@ -280,11 +281,9 @@ def plan(
         str | None, typer.Option("--current-q", help="current UR5 joints q1,...,q6 [rad] (default: home)")
     ] = None,
     closing_axis: Annotated[str, typer.Option(help="object axis the CS closes across: minor | major")] = "minor",
-    cs_method: Annotated[str, typer.Option("--cs-method", help="ellipsoid | pca | mesh")] = "ellipsoid",
-    criterion: Annotated[str, typer.Option("--criterion", help="ellipsoid CS: absolute | relative")] = "absolute",
-    placement: Annotated[
-        str, typer.Option("--placement", help="open_centre | grasp_centre | previous (hand point over the object)")
-    ] = "open_centre",
+    cs_method: CsMethodOption = "ellipsoid",
+    criterion: CriterionOption = "absolute",
+    placement: PlacementOption = "open_centre",
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
 ) -> None:
     """Plan a UR5 top grasp of an object on the table with strategy S or C."""
@@ -295,7 +294,7 @@ def plan(
         request = PlanRequest(
             hand=hand, obj=_object_arg(obj, x, y, yaw), strategy=strategy,  # type: ignore[arg-type]
             current_q=q, closing_axis=closing_axis,  # type: ignore[arg-type]
-            cs_method=cs_method, cs_criterion=criterion, placement=placement,  # type: ignore[arg-type]
+            **plan_options(cs_method, criterion, placement),  # type: ignore[arg-type]
         )  # fmt: skip
         result = Planner().plan(request)
         data = result.to_json_dict()

@@ -6,7 +6,7 @@ import json
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import typer
 
@@ -44,3 +44,22 @@ def parse_object(spec: str, x: float, y: float, yaw: float) -> Any:
     if isinstance(data, dict):
         data = {**data, "pose": {**data.get("pose", {}), "x": x, "y": y, "yaw": yaw}}
     return object_from_json(data)
+
+
+CsMethodOption = Annotated[str, typer.Option("--cs-method", help="closure signature for C: ellipsoid | pca | mesh")]
+CriterionOption = Annotated[
+    str, typer.Option("--criterion", help="ellipsoid CS criterion: absolute [m] (DESIGN §4) | relative")
+]
+PlacementOption = Annotated[
+    str,
+    typer.Option(
+        "--placement",
+        help="hand point over the object's centre, the same for S and C: open_centre | grasp_centre; or previous "
+        "(per strategy)",
+    ),
+]
+
+
+def plan_options(cs_method: str, criterion: str, placement: str) -> dict[str, str]:
+    """The :class:`PlanRequest` fields of the three plan options above (validated by the request)."""
+    return {"cs_method": cs_method, "cs_criterion": criterion, "placement": placement}

@@ -46,7 +46,7 @@ from softsig_service.planning.clearance import HandClearance
 from softsig_service.planning.objects import TableObject
 from softsig_service.planning.strategies import STRATEGIES, axis_angle_between_lines, strategy_s_poses
 from softsig_service.planning.wrist_pose import solve_wrist_pose
-from softsig_service.signatures.closure import ClosureSignature, Criterion, compute_closure_signature
+from softsig_service.signatures.closure import CRITERIA, ClosureSignature, Criterion, compute_closure_signature
 
 START_HEIGHT = 0.5
 """[m] the descent starts this far above the object's centre along the approach."""
@@ -132,9 +132,8 @@ class PlanRequest:
             raise InvalidInput("unknown strategy", field="strategy", value=self.strategy, choices=STRATEGIES)
         if self.placement not in PLACEMENTS:
             raise InvalidInput("unknown placement", field="placement", value=self.placement, choices=PLACEMENTS)
-        if self.cs_criterion not in ("absolute", "relative"):
-            raise InvalidInput("unknown criterion", field="cs_criterion", value=self.cs_criterion,
-                               choices=("absolute", "relative"))  # fmt: skip
+        if self.cs_criterion not in CRITERIA:
+            raise InvalidInput("unknown criterion", field="cs_criterion", value=self.cs_criterion, choices=CRITERIA)
         if self.closing_axis not in ("minor", "major"):
             raise InvalidInput("unknown closing axis", field="closing_axis", value=self.closing_axis,
                                choices=("minor", "major"))  # fmt: skip

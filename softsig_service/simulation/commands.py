@@ -19,8 +19,8 @@ from typing import Annotated, Any
 
 import typer
 
+from softsig_service.cli_support import CriterionOption, CsMethodOption, PlacementOption, parse_object, plan_options
 from softsig_service.cli_support import errors_to_exit as _errors
-from softsig_service.cli_support import parse_object
 from softsig_service.errors import InvalidInput, RenderUnavailable
 
 FRAME_SIZE = (640, 480)
@@ -110,11 +110,9 @@ def validate(
     video: Annotated[Path | None, typer.Option("--video", help="write an MP4 of the trials (needs imageio)")] = None,
     frames: Annotated[Path | None, typer.Option("--frames", help="write PNG frames into DIR/trial_NNN/")] = None,
     fps: Annotated[float, typer.Option("--fps", help="frames per second of sim time", min=1.0, max=500.0)] = 30.0,
-    cs_method: Annotated[str, typer.Option("--cs-method", help="ellipsoid | pca | mesh")] = "ellipsoid",
-    criterion: Annotated[str, typer.Option("--criterion", help="ellipsoid CS: absolute | relative")] = "absolute",
-    placement: Annotated[
-        str, typer.Option("--placement", help="open_centre | grasp_centre | previous (hand point over the object)")
-    ] = "open_centre",
+    cs_method: CsMethodOption = "ellipsoid",
+    criterion: CriterionOption = "absolute",
+    placement: PlacementOption = "open_centre",
 ) -> None:
     """Plan a top grasp on the nominal object pose and simulate it in MuJoCo, under pose noise if asked."""
     with _errors():
@@ -138,7 +136,7 @@ def validate(
                     sigma_t=sigma_t,
                     on_frame=recorder,
                     frame_period=1.0 / fps,
-                    plan_options={"cs_method": cs_method, "cs_criterion": criterion, "placement": placement},
+                    plan_options=plan_options(cs_method, criterion, placement),
                 )
                 results.append(result)
                 if recorder is not None:
@@ -204,18 +202,9 @@ def table1(
     address: Annotated[str | None, typer.Option("--address", help="Ray cluster address (default: local)")] = None,
     progress: Annotated[bool, typer.Option("--progress/--no-progress", help="progress bar on stderr")] = True,
     as_json: Annotated[bool, typer.Option("--json", help="print the summary as JSON")] = False,
-    cs_method: Annotated[str, typer.Option("--cs-method", help="closure signature for C: ellipsoid | pca | mesh")] = (
-        "ellipsoid"
-    ),
-    criterion: Annotated[
-        str, typer.Option("--criterion", help="ellipsoid CS criterion: absolute (DESIGN §4) | relative")
-    ] = "absolute",
-    placement: Annotated[
-        str,
-        typer.Option(
-            "--placement", help="open_centre | grasp_centre (both strategies, same point) | previous (per strategy)"
-        ),
-    ] = "open_centre",
+    cs_method: CsMethodOption = "ellipsoid",
+    criterion: CriterionOption = "absolute",
+    placement: PlacementOption = "open_centre",
     conditions: Annotated[
         str | None,
         typer.Option("--conditions", help="indices of the Table I conditions to run, e.g. 2 or 0,2 (default all)"),
