@@ -21,7 +21,7 @@ from softsig_service.gl_backend import prepare_mujoco
 
 prepare_mujoco()
 
-from softsig_service.planning.objects import BUILTIN_NAMES, builtin_object  # noqa: E402
+from softsig_service.objects import BUILTIN_NAMES, builtin_object  # noqa: E402
 from softsig_service.planning.planner import Planner, PlanRequest, planning_model  # noqa: E402
 
 

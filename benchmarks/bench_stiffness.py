@@ -22,12 +22,9 @@ from softsig_service.gl_backend import prepare_mujoco
 prepare_mujoco()
 
 from softsig_service.hands.model import builtin_hand_names, load_hand  # noqa: E402
-from softsig_service.signatures.grasp_sim import (  # noqa: E402
-    grasp_matrices,
-    grasp_object,
-    grasp_stiffness_from_matrices,
-)
-from softsig_service.signatures.pullout import PullSettings, default_directions, pull_test  # noqa: E402
+from softsig_service.simulation.grasp import grasp_object  # noqa: E402
+from softsig_service.simulation.grasp_matrices import grasp_matrices, grasp_stiffness_from_matrices  # noqa: E402
+from softsig_service.simulation.pullout import PullSettings, default_directions, pull_test  # noqa: E402
 
 
 def main() -> None:

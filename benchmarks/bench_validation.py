@@ -29,9 +29,10 @@ prepare_mujoco()
 
 import mujoco  # noqa: E402
 
-from softsig_service.planning.objects import BUILTIN_NAMES, builtin_object  # noqa: E402
-from softsig_service.simulation.campaign import CampaignSpec, run_campaign, trial_seed  # noqa: E402
-from softsig_service.simulation.rollout import run_trial  # noqa: E402
+from softsig_service.experiments.campaign import run_campaign  # noqa: E402
+from softsig_service.experiments.campaign_spec import CampaignSpec, trial_seed  # noqa: E402
+from softsig_service.experiments.trial import run_trial  # noqa: E402
+from softsig_service.objects import BUILTIN_NAMES, builtin_object  # noqa: E402
 
 STRATEGIES: tuple[Literal["S", "C"], ...] = ("S", "C")
 

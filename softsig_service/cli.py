@@ -208,7 +208,8 @@ def signature_stiffness(
 ) -> None:
     """Grasp an object in MuJoCo: 6x6 grasp stiffness at the object and break forces per pull direction."""
     from softsig_service.hands.model import load_hand
-    from softsig_service.signatures.pullout import AXIS_DIRECTIONS, compute_stiffness_signature
+    from softsig_service.simulation.pullout import AXIS_DIRECTIONS
+    from softsig_service.simulation.stiffness_signature import compute_stiffness_signature
 
     with _errors():
         the_obj = _stiffness_object(obj)
@@ -244,7 +245,7 @@ def signature_stiffness(
 def _stiffness_object(spec: str) -> Any:
     """``box|apple|cylinder``, ``sphere:R`` (radius [m]) or a JSON file: the object held in the hand."""
     from softsig_service.errors import InvalidInput
-    from softsig_service.planning.objects import BUILTIN_NAMES, builtin_object, sphere
+    from softsig_service.objects import BUILTIN_NAMES, builtin_object, sphere
 
     if spec in BUILTIN_NAMES:
         return builtin_object(spec)

@@ -29,7 +29,7 @@ def emit(data: Any, as_json: bool, text: Callable[[], str]) -> None:
 
 def parse_object(spec: str, x: float, y: float, yaw: float) -> Any:
     """``box|apple|cylinder`` or a path to an object JSON, placed at (x, y, yaw) on the table."""
-    from softsig_service.planning.objects import BUILTIN_NAMES, builtin_object, object_from_json
+    from softsig_service.objects import BUILTIN_NAMES, builtin_object, object_from_json
 
     if spec in BUILTIN_NAMES:
         return builtin_object(spec, x=x, y=y, yaw=yaw)

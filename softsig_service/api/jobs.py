@@ -597,7 +597,7 @@ def render_plan_png(plan: dict[str, Any], manifest_path: str | None) -> bytes:
     from matplotlib.patches import Circle, Ellipse, Polygon
 
     from softsig_service.geometry.transforms import Pose
-    from softsig_service.planning.objects import convex_hull_2d, object_from_json
+    from softsig_service.objects import convex_hull_2d, object_from_json
 
     obj = object_from_json(plan["object"])
     fig = Figure(figsize=(7.2, 6.4), dpi=100)
@@ -714,8 +714,8 @@ def run_stiffness_signature(params: dict[str, Any], ctx: JobContext) -> dict[str
     """
     import json
 
-    from softsig_service.planning.objects import object_from_json
-    from softsig_service.signatures.pullout import compute_stiffness_signature
+    from softsig_service.objects import object_from_json
+    from softsig_service.simulation.stiffness_signature import compute_stiffness_signature
 
     ctx.progress(0.0, "loading the hand")
     hand = _compile(str(params["manifest_path"]), ModelLimits(**params["limits"]))
@@ -740,9 +740,9 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     import csv
     import json
 
-    from softsig_service.planning.objects import object_from_json
-    from softsig_service.simulation.campaign import trial_seed
-    from softsig_service.simulation.rollout import run_trial
+    from softsig_service.experiments.campaign_spec import trial_seed
+    from softsig_service.experiments.trial import run_trial
+    from softsig_service.objects import object_from_json
 
     obj = object_from_json(params["object"])
     trials, seed = int(params["trials"]), int(params["seed"])
@@ -782,13 +782,14 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
 
 def run_experiment(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     """The reference experiment (DESIGN §7, the paper's Table I) with
-    :func:`~softsig_service.simulation.campaign.run_campaign`: 3 conditions x 3 objects x S and C x ``trials``,
+    :func:`~softsig_service.experiments.campaign.run_campaign`: 3 conditions x 3 objects x S and C x ``trials``,
     in ``workers`` processes (default: the campaign's own choice, every core). Its files (``campaign.json``,
     ``trials.jsonl``, ``results.json``, ``results.csv``, ``report.md``, ``table1.png``) go to the job's folder.
 
     ``params``: ``hand_ref``, ``trials`` (per cell), ``seed``, ``workers``.
     """
-    from softsig_service.simulation.campaign import CampaignSpec, run_campaign
+    from softsig_service.experiments.campaign import run_campaign
+    from softsig_service.experiments.campaign_spec import CampaignSpec
 
     spec = CampaignSpec(hand=str(params["hand_ref"]), trials=int(params["trials"]), seed=int(params["seed"]))
     total = len(spec.trial_specs())

@@ -42,7 +42,7 @@ class Out(BaseModel):
 
 
 # ----------------------------------------------------------------------------------------------------------
-# objects (the JSON of softsig_service.planning.objects.object_from_json)
+# objects (the JSON of softsig_service.objects.object_from_json)
 # ----------------------------------------------------------------------------------------------------------
 
 

@@ -393,7 +393,7 @@ class CollisionWorld:
 
         Args:
             shape: the object's shape in its own frame (:class:`ObjectShape`, or
-                ``softsig_service.planning.objects`` primitives), MuJoCo size conventions.
+                ``softsig_service.objects`` primitives), MuJoCo size conventions.
             pose: 4x4 pose ``T_world_shape`` of the shape frame [m].
         """
         T = check_transform(pose, field="object.pose").copy()

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from softsig_service.arm.collision import HandShape, object_geometry
-from softsig_service.planning.objects import TableObject
+from softsig_service.objects import TableObject
 
 TABLE_HALF_THICKNESS = 0.05
 """[m] the table is a 6 x 6 x 0.1 m box whose top face is the table plane."""

@@ -42,8 +42,8 @@ from softsig_service.geometry.transforms import Pose, matrix_to_quat
 from softsig_service.hands.closure import simulate_closure
 from softsig_service.hands.collision_shapes import hand_collision_shapes
 from softsig_service.hands.model import load_hand
+from softsig_service.objects import TableObject
 from softsig_service.planning.clearance import HandClearance
-from softsig_service.planning.objects import TableObject
 from softsig_service.planning.strategies import STRATEGIES, axis_angle_between_lines, strategy_s_poses
 from softsig_service.planning.wrist_pose import solve_wrist_pose
 from softsig_service.signatures.closure import CRITERIA, ClosureSignature, Criterion, compute_closure_signature

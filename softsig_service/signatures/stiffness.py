@@ -1,7 +1,7 @@
 """The stiffness signature (SS) of a grasp: the 6x6 grasp stiffness at the object and the break forces.
 
-Pure math (numpy only, DESIGN §2): no MuJoCo here. :mod:`softsig_service.signatures.grasp_sim` finds a grasp
-in MuJoCo and extracts the matrices below; :mod:`softsig_service.signatures.pullout` measures break forces.
+Pure math (numpy only, DESIGN §2): no MuJoCo here. :mod:`softsig_service.simulation.grasp` finds a grasp
+in MuJoCo and extracts the matrices below; :mod:`softsig_service.simulation.pullout` measures break forces.
 
 **Frames and units.** Every vector and matrix is in the *hand frame* (DESIGN §3: the mount body's frame, +z the
 approach). Twists, wrenches and stiffness are ordered linear first, then angular (Pinocchio's order), with the
@@ -31,7 +31,7 @@ with, for ``nc`` hard-finger contacts (a 3-D force each, no contact torque):
   ``Kj = (Kq^-1 + S Kz^-1 S^T)^-1``.
 * ``"parallel"`` — the adaptive-synergy / tendon model that MuJoCo simulates for a tendon or a servo acting on
   the joints *beside* their springs: ``tau = -(Kq + S Kz S^T) dq``, so the stiffnesses add:
-  ``Kj = Kq + S Kz S^T``. This is the model :mod:`~softsig_service.signatures.grasp_sim` uses by default
+  ``Kj = Kq + S Kz S^T``. This is the model :mod:`~softsig_service.simulation.grasp` uses by default
   because it is the physics of the simulated hands (a position actuator on a fixed tendon adds
   ``kp gear^2 S S^T`` to the joint stiffness; a posture servo adds ``kp`` on its joint).
 

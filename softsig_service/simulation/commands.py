@@ -116,9 +116,9 @@ def validate(
 ) -> None:
     """Plan a top grasp on the nominal object pose and simulate it in MuJoCo, under pose noise if asked."""
     with _errors():
+        from softsig_service.experiments.campaign_spec import trial_seed
+        from softsig_service.experiments.trial import run_trial
         from softsig_service.planning.strategies import STRATEGIES
-        from softsig_service.simulation.campaign import trial_seed
-        from softsig_service.simulation.rollout import run_trial
 
         if strategy not in STRATEGIES:
             raise InvalidInput("unknown strategy", field="strategy", value=strategy, choices=STRATEGIES)
@@ -215,13 +215,8 @@ def table1(
 ) -> None:
     """Run the paper's Table I in simulation: 3 uncertainty levels x box, apple, cylinder x S, C."""
     with _errors():
-        from softsig_service.simulation.campaign import (
-            BACKENDS,
-            TABLE1_CONDITIONS,
-            CampaignSpec,
-            read_records,
-            run_campaign,
-        )
+        from softsig_service.experiments.campaign import read_records, run_campaign
+        from softsig_service.experiments.campaign_spec import BACKENDS, TABLE1_CONDITIONS, CampaignSpec
 
         if backend not in BACKENDS:
             raise InvalidInput("unknown backend", field="backend", value=backend, choices=BACKENDS)

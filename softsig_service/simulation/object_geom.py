@@ -5,7 +5,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from softsig_service.planning.objects import ShapePrimitive
+from softsig_service.objects import ShapePrimitive
 
 GEOM_TYPES = {
     "box": mujoco.mjtGeom.mjGEOM_BOX,

@@ -32,7 +32,7 @@ is the plane z = ``table_height`` for contacts (drawn as a 1.8 m square).
 built-in hands; ``implicitfast``), elliptic friction cones with ``impratio = 10`` (less creep of held objects
 than MuJoCo's default pyramidal cones), gravity 9.81 m/s² along world -z.
 
-**Object.** A free body from a :class:`~softsig_service.planning.objects.TableObject`: its primitive (box,
+**Object.** A free body from a :class:`~softsig_service.objects.TableObject`: its primitive (box,
 cylinder, sphere, ellipsoid, or a mesh from its vertices and faces) with the object's ``mass`` [kg] (uniform
 density) and sliding ``friction`` (torsional 0.005 m, rolling 0.0001 m, ``condim = 4``). MuJoCo combines the
 friction of two geoms in contact by taking the larger: object-hand contacts use max(object, hand geom), and
@@ -58,7 +58,7 @@ from softsig_service.errors import InvalidHandModel
 from softsig_service.geometry.transforms import matrix_to_quat
 from softsig_service.hands.manifest import load_manifest
 from softsig_service.hands.model import HandModel, compile_hand, resolve_hand_path
-from softsig_service.planning.objects import TableObject
+from softsig_service.objects import TableObject
 from softsig_service.simulation.object_geom import set_object_shape
 
 FloatArray = NDArray[np.float64]

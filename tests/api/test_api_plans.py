@@ -15,7 +15,7 @@ from fastapi.testclient import TestClient
 
 from softsig_service.api.app import create_app
 from softsig_service.geometry.transforms import Pose, quat_to_matrix
-from softsig_service.planning.objects import builtin_object
+from softsig_service.objects import builtin_object
 from softsig_service.planning.planner import Planner, PlanRequest
 
 BOX = {"kind": "builtin", "name": "box", "pose": {"x": 0.5, "y": 0.05, "yaw": 0.4}}

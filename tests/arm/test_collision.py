@@ -20,7 +20,7 @@ from softsig_service.arm.collision import (
 from softsig_service.arm.ur5 import UR5, load_ur5
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.transforms import apply, make_transform, rot_x, rot_y, rot_z
-from softsig_service.planning.objects import builtin_object
+from softsig_service.objects import builtin_object
 
 # a small hand in the tool0 frame: a palm and two fingers reaching 0.12 m out of the flange
 HAND = (

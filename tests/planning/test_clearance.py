@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from softsig_service.arm.collision import object_geometry
+from softsig_service.objects import builtin_object
 from softsig_service.planning.clearance import TABLE_HALF_THICKNESS, HandClearance
-from softsig_service.planning.objects import builtin_object
 from softsig_service.planning.planner import planning_model
 from softsig_service.planning.wrist_pose import hand_rotation
 

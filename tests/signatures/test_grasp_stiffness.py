@@ -11,24 +11,20 @@ import pytest
 from softsig_service.errors import InvalidInput
 from softsig_service.hands.closure import prepare_data
 from softsig_service.hands.model import builtin_hand_names, load_hand
-from softsig_service.signatures.grasp_sim import (
-    Grasp,
-    actuator_synergies,
-    grasp_matrices,
-    grasp_object,
-    hand_object_contacts,
-)
-from softsig_service.signatures.pullout import (
+from softsig_service.signatures.ss_plot import plot_stiffness_signature
+from softsig_service.signatures.stiffness import StiffnessSignature, is_psd
+from softsig_service.simulation.grasp import grasp_object
+from softsig_service.simulation.grasp_matrices import actuator_synergies, grasp_matrices, hand_object_contacts
+from softsig_service.simulation.grasp_state import Grasp
+from softsig_service.simulation.pullout import (
     AXIS_DIRECTIONS,
     SPHERE_DIRECTIONS,
     PullSettings,
-    compute_stiffness_signature,
     default_directions,
     pull_test,
     pull_tests,
 )
-from softsig_service.signatures.ss_plot import plot_stiffness_signature
-from softsig_service.signatures.stiffness import StiffnessSignature, is_psd
+from softsig_service.simulation.stiffness_signature import compute_stiffness_signature
 
 HANDS = builtin_hand_names()
 # reduced direction set for the tests: +x, +y, +z (the default is 26)

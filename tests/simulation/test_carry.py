@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import pytest
 
-from softsig_service.planning.objects import builtin_object
+from softsig_service.experiments.trial import default_planner, run_trial
+from softsig_service.objects import builtin_object
 from softsig_service.planning.planner import PlanRequest
-from softsig_service.simulation.rollout import default_planner, run_trial
 
 HALF_LIFT = 0.5 * 0.15
 SAG_BAND: dict[str, tuple[float, float]] = {

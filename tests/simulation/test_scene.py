@@ -10,7 +10,7 @@ import pytest
 
 from softsig_service.arm.ur5 import HOME_Q, JOINT_NAMES, load_ur5
 from softsig_service.hands.model import SERVO_PREFIX, load_hand
-from softsig_service.planning.objects import box, builtin_object, cylinder, mesh
+from softsig_service.objects import box, builtin_object, cylinder, mesh
 from softsig_service.simulation.scene import (
     ARM_KP,
     ARM_KV,

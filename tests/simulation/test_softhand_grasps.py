@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import pytest
 
-from softsig_service.planning.objects import builtin_object
-from softsig_service.simulation.rollout import RolloutConfig, run_trial
+from softsig_service.experiments.trial import run_trial
+from softsig_service.objects import builtin_object
+from softsig_service.simulation.rollout import RolloutConfig
 
 
 @pytest.mark.parametrize("obj", ["box", "apple", "cylinder"])

@@ -13,7 +13,6 @@ Job kinds (``kind`` of a job): ``stiffness_signature`` (``POST /v1/hands/{hand}/
 
 from __future__ import annotations
 
-import importlib.util
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Path, Query
@@ -34,19 +33,12 @@ from softsig_service.api.schemas import (
     object_json,
 )
 from softsig_service.errors import HandNotFound, InvalidInput, NotFound, ServiceBusy
-from softsig_service.planning.objects import object_from_json
+from softsig_service.objects import object_from_json
 from softsig_service.registry import repository as repo
 from softsig_service.registry.db import Registry
 
 router = APIRouter(prefix="/v1", tags=["jobs"])
 JobId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="a job's id")]
-
-
-def _has(module: str) -> bool:
-    try:
-        return importlib.util.find_spec(module) is not None
-    except ModuleNotFoundError:
-        return False
 
 
 def _store_stiffness(registry: Registry, params: dict[str, Any], result: dict[str, Any]) -> dict[str, Any]:
@@ -71,28 +63,26 @@ def _store_stiffness(registry: Registry, params: dict[str, Any], result: dict[st
 
 
 def available_job_kinds() -> dict[str, JobKind]:
-    """The job kinds whose implementation is present in this installation."""
-    kinds: dict[str, JobKind] = {}
-    if _has("softsig_service.signatures.pullout"):
-        kinds["stiffness_signature"] = JobKind(
+    """The job kinds this service runs, by name."""
+    kinds = (
+        JobKind(
             "stiffness_signature",
             "softsig_service.api.jobs:run_stiffness_signature",
             "grasp an object in MuJoCo: 6x6 stiffness and break forces; stored as a signature version",
             on_result=_store_stiffness,
-        )
-    if _has("softsig_service.simulation.rollout") and _has("softsig_service.simulation.campaign"):
-        kinds["validation"] = JobKind(
+        ),
+        JobKind(
             "validation",
             "softsig_service.api.jobs:run_validation",
             "simulate a plan's grasp in MuJoCo, trials under object-pose noise",
-        )
-        kinds["experiment"] = JobKind(
+        ),
+        JobKind(
             "experiment",
             "softsig_service.api.jobs:run_experiment",
             "the reference experiment (Table I): conditions x objects x strategies x trials",
-        )
-    return kinds
-
+        ),
+    )
+    return {k.name: k for k in kinds}
 
 def _hand_for_job(ctx: AppContext, name: str) -> repo.HandRecord:
     try:

@@ -33,7 +33,7 @@ def _links(plan_id: str) -> dict[str, str]:
 
 def make_plan(ctx: AppContext, body: PlanIn) -> dict[str, Any]:
     """Plan ``body`` with the app's planner and store it (unless ``store`` is false); the plan JSON."""
-    from softsig_service.planning.objects import object_from_json
+    from softsig_service.objects import object_from_json
     from softsig_service.planning.planner import PlanRequest
 
     try:

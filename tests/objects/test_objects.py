@@ -9,9 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from softsig_service import objects as O  # noqa: N812
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.transforms import apply, rot_z
-from softsig_service.planning import objects as O  # noqa: N812
 
 
 def box_mesh(sx: float, sy: float, sz: float) -> tuple[np.ndarray, np.ndarray]:

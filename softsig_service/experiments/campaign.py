@@ -1,0 +1,307 @@
+"""Monte Carlo validation campaigns: conditions x objects x strategies x trials, in parallel, resumable, reported.
+
+A campaign (DESIGN §7, the paper's Table I) runs :func:`~softsig_service.experiments.trial.run_trial` for every
+cell (condition ``(sigma_r [rad], sigma_t [m])``, object, strategy) ``trials`` times:
+
+* **Seeds**: trial ``k`` of cell ``(i, j, s)`` (condition, object and strategy indices) gets
+  ``SeedSequence(entropy=seed, spawn_key=(i, j, s, k)).generate_state(1, uint32)[0]``: deterministic, independent
+  between cells (S and C see independent perturbations, as Fisher's test assumes), echoed in every record.
+* **Backends**: ``"local"``: a ``concurrent.futures.ProcessPoolExecutor`` with the ``spawn`` start method and
+  ``workers`` processes (default: every core this process may use); each worker builds its planner and MuJoCo
+  scenes once (module caches) and reuses them. ``"ray"``: tasks on a Ray cluster (``address`` of a running
+  cluster, or a local one with ``workers`` CPUs); Ray is an optional extra, imported only then. Every node of
+  a remote cluster needs softsig and its dependencies installed (tasks import ``softsig_service``). The
+  main process writes the files in both cases.
+* **Files** in ``out``: ``campaign.json`` (the spec), ``trials.jsonl`` (one JSON record per finished trial,
+  appended and flushed as trials finish), and when every trial is done (or at :func:`write_report`):
+  ``results.json`` (spec, records sorted by index, summary), ``results.csv``, ``report.md`` and ``table1.png``.
+* **Resuming**: running the same spec with the same ``out`` skips every trial already in ``trials.jsonl`` (a
+  torn last line of an interrupted run is ignored). A different spec in the same folder is refused.
+* **Report** (:mod:`softsig_service.experiments.report`): a Markdown table laid out like the paper's Table I
+  (rows objects, columns conditions, each cell
+  "S / C" successes out of N) beside the paper's real-robot counts, Wilson 95 % intervals
+  (``scipy.stats.binomtest(...).proportion_ci(method="wilson")``), Fisher's exact test of S vs C per cell,
+  pooled per condition and overall (two-sided, and one-sided for the paper's claim C > S), the failure
+  reasons, and a bar chart (matplotlib, Agg).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any, Literal
+
+from softsig_service.errors import Conflict, InvalidInput
+from softsig_service.experiments.campaign_spec import BACKENDS, SPEC_FILE, TRIALS_FILE, CampaignSpec, TrialSpec
+from softsig_service.experiments.report import write_report
+from softsig_service.experiments.statistics import summarize
+
+
+def run_trial_spec(spec: TrialSpec) -> dict[str, Any]:
+    """Run one campaign trial and return its JSON record (used by the worker processes and Ray tasks)."""
+    from softsig_service.gl_backend import prepare_mujoco
+
+    prepare_mujoco()
+    from softsig_service.experiments.trial import run_trial
+    from softsig_service.objects import builtin_object
+
+    obj = builtin_object(spec.object, x=spec.x, y=spec.y, yaw=spec.yaw)
+    result = run_trial(
+        spec.hand,
+        obj,
+        spec.strategy,  # type: ignore[arg-type]
+        seed=spec.seed,
+        sigma_r=spec.sigma_r,
+        sigma_t=spec.sigma_t,
+        plan_options={"cs_method": spec.cs_method, "cs_criterion": spec.criterion, "placement": spec.placement},
+    )
+    record = result.to_json_dict()
+    record.update(key=spec.key, index=spec.index, condition=spec.condition, trial=spec.trial, pid=os.getpid())
+    return record
+
+
+def _worker_init() -> None:
+    """Worker start-up: choose MuJoCo's GL backend before MuJoCo is imported."""
+    from softsig_service.gl_backend import prepare_mujoco
+
+    prepare_mujoco()
+
+
+# ----------------------------------------------------------------------------------------------------------
+# the record file
+# ----------------------------------------------------------------------------------------------------------
+
+
+def read_records(path: Path) -> list[dict[str, Any]]:
+    """The records of a ``trials.jsonl`` (a torn or malformed line, e.g. the last of a killed run, is skipped)."""
+    if not path.is_file():
+        return []
+    out: list[dict[str, Any]] = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        if not line.strip():
+            continue
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(rec, dict) and "key" in rec:
+            out.append(rec)
+    return out
+
+
+def _ends_torn(path: Path) -> bool:
+    """Whether the file is non-empty and does not end with a newline."""
+    size = path.stat().st_size
+    if size == 0:
+        return False
+    with path.open("rb") as f:
+        f.seek(size - 1)
+        return f.read(1) != b"\n"
+
+
+def _check_out_dir(out: Path, spec: CampaignSpec) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / SPEC_FILE
+    if path.is_file():
+        try:
+            old = json.loads(path.read_text(encoding="utf-8"))
+        except json.JSONDecodeError:
+            old = None
+        if old != spec.to_json_dict():
+            raise Conflict(
+                "the output folder holds a different campaign; use another --out or the same parameters",
+                field="out",
+                value=str(out),
+            )
+    else:
+        path.write_text(json.dumps(spec.to_json_dict(), indent=2) + "\n", encoding="utf-8")
+
+
+# ----------------------------------------------------------------------------------------------------------
+# running a campaign
+# ----------------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class CampaignResult:
+    """What :func:`run_campaign` did: the spec, every record so far (sorted by index), how many trials it ran
+    now and how many it skipped as already done, whether the grid is complete, wall time [s], the files."""
+
+    spec: CampaignSpec
+    records: list[dict[str, Any]]
+    ran: int
+    skipped: int
+    complete: bool
+    wall_time: float
+    files: dict[str, str] = field(default_factory=dict)
+    summary: dict[str, Any] = field(default_factory=dict)
+
+
+ProgressCallback = Callable[[int, int], None]
+"""Called with (done, total) after each finished trial."""
+
+
+def default_workers() -> int:
+    """Every core this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def run_campaign(
+    spec: CampaignSpec,
+    out: Path,
+    *,
+    workers: int | None = None,
+    backend: Literal["local", "ray"] = "local",
+    address: str | None = None,
+    progress: bool | ProgressCallback = False,
+    max_trials: int | None = None,
+) -> CampaignResult:
+    """Run (or resume) ``spec`` writing into ``out``; see the module docstring.
+
+    ``workers``: processes (local) or CPUs of a local Ray; default :func:`default_workers`. ``workers=1`` with
+    the local backend runs in this process (no pool). ``progress``: True for a rich progress bar on stderr, or
+    a callback. ``max_trials``: stop after this many new trials (an interruption on purpose; the campaign
+    stays resumable). Raises :class:`InvalidInput` for a bad backend or worker count or a missing Ray,
+    :class:`Conflict` if ``out`` holds another campaign.
+    """
+    if backend not in BACKENDS:
+        raise InvalidInput("unknown backend", field="backend", value=backend, choices=BACKENDS)
+    n_workers = default_workers() if workers is None else workers
+    if n_workers < 1:
+        raise InvalidInput("need at least one worker", field="workers", value=workers)
+    if max_trials is not None and max_trials < 0:
+        raise InvalidInput("must be >= 0", field="max_trials", value=max_trials)
+    t0 = time.perf_counter()
+    out = Path(out)
+    _check_out_dir(out, spec)
+    trials_path = out / TRIALS_FILE
+    specs = spec.trial_specs()
+    by_key = {t.key: t for t in specs}
+    done = {r["key"]: r for r in read_records(trials_path) if r["key"] in by_key}
+    todo = [t for t in specs if t.key not in done]
+    skipped = len(specs) - len(todo)
+    if max_trials is not None:
+        todo = todo[:max_trials]
+
+    callback = progress if callable(progress) else None
+    ran = 0
+    with (
+        _progress_bar(bool(progress) and callback is None, len(specs), skipped) as bar_update,
+        trials_path.open("a", encoding="utf-8") as sink,
+    ):
+        if todo and _ends_torn(trials_path):
+            sink.write("\n")  # a torn last line of an interrupted run stays alone on its line
+        for record in _execute(todo, backend, n_workers, address):
+            sink.write(json.dumps(record) + "\n")
+            sink.flush()
+            done[record["key"]] = record
+            ran += 1
+            bar_update()
+            if callback is not None:
+                callback(len(done), len(specs))
+
+    records = sorted(done.values(), key=lambda r: int(r["index"]))
+    complete = len(records) == len(specs)
+    result = CampaignResult(
+        spec=spec, records=records, ran=ran, skipped=skipped, complete=complete, wall_time=time.perf_counter() - t0
+    )
+    if complete:
+        result.files = write_report(spec, records, out, wall_time=result.wall_time)
+        result.summary = summarize(spec, records)
+    return result
+
+
+@contextmanager
+def _progress_bar(enabled: bool, total: int, completed: int) -> Iterator[Callable[[], None]]:
+    """A rich progress bar on stderr (or nothing); yields the function that advances it by one trial."""
+    if not enabled:
+        yield lambda: None
+        return
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    bar = Progress(
+        TextColumn("trials"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=Console(stderr=True)
+    )
+    task = bar.add_task("trials", total=total, completed=completed)
+    with bar:
+        yield lambda: bar.advance(task)
+
+
+def _execute(todo: list[TrialSpec], backend: str, workers: int, address: str | None) -> Iterator[dict[str, Any]]:
+    if not todo:
+        return
+    if backend == "ray":
+        yield from _execute_ray(todo, workers, address)
+    elif workers == 1:
+        _worker_init()
+        for t in todo:
+            yield run_trial_spec(t)
+    else:
+        yield from _execute_pool(todo, workers)
+
+
+def _execute_pool(todo: list[TrialSpec], workers: int) -> Iterator[dict[str, Any]]:
+    """A spawn-context process pool; at most ``2 * workers`` trials in flight (an interrupt loses little)."""
+    ctx = get_context("spawn")
+    pending: set[Future[dict[str, Any]]] = set()
+    queue = iter(todo)
+    with ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx, initializer=_worker_init) as pool:
+        try:
+            for t in queue:
+                pending.add(pool.submit(run_trial_spec, t))
+                if len(pending) >= 2 * workers:
+                    break
+            while pending:
+                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    yield f.result()
+                    nxt = next(queue, None)
+                    if nxt is not None:
+                        pending.add(pool.submit(run_trial_spec, nxt))
+        finally:
+            for f in pending:
+                f.cancel()
+
+
+def _execute_ray(todo: list[TrialSpec], workers: int, address: str | None) -> Iterator[dict[str, Any]]:
+    try:
+        import ray
+    except ImportError:
+        raise InvalidInput(
+            "the Ray backend needs the 'ray' package: pip install 'softsig[ray]' (or pip install ray)",
+            field="backend",
+            value="ray",
+        ) from None
+    started = False
+    if not ray.is_initialized():
+        if address:
+            ray.init(address=address, include_dashboard=False, log_to_driver=False)
+        else:
+            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+        started = True
+    try:
+        remote = ray.remote(num_cpus=1, max_retries=2)(run_trial_spec)
+        pending = [remote.remote(t) for t in todo]
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            for ref in ready:
+                yield ray.get(ref)
+    finally:
+        if started:
+            ray.shutdown()
+
+
+# ----------------------------------------------------------------------------------------------------------
+# statistics and the report
+# ----------------------------------------------------------------------------------------------------------
