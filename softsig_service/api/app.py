@@ -16,23 +16,24 @@ from __future__ import annotations
 
 import json
 import logging
-import threading
 from collections.abc import AsyncIterator, Mapping
 from contextlib import asynccontextmanager
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from fastapi import FastAPI
 from starlette.concurrency import run_in_threadpool
 
 from softsig_service import __version__
-from softsig_service.api.jobs import ComputePool, JobKind, JobManager
-from softsig_service.api.logging import Metrics, RequestContextMiddleware
+from softsig_service.api.context import AppContext
+from softsig_service.api.logging import RequestContextMiddleware
 from softsig_service.api.problems import BodyLimitMiddleware, install_problem_handlers
 from softsig_service.config import Settings
 from softsig_service.registry import repository as repo
 from softsig_service.registry.db import Registry
+from softsig_service.services.compute import ComputePool
+from softsig_service.services.job_kinds import default_job_kinds, register_builtin_hands
+from softsig_service.services.jobs import JobKind, JobManager
+from softsig_service.services.observability import Metrics
 
 log = logging.getLogger("softsig.api")
 
@@ -50,63 +51,6 @@ for a UR5, and validation jobs in MuJoCo.
 * Updates and deletes of a hand need `If-Match` with its `ETag` (428 without, 412 on a mismatch).
 * Long work (validations, experiments) answers `202 Accepted` with `Location: /v1/jobs/{id}`.
 """
-
-
-@dataclass
-class AppContext:
-    """Everything the routes need, made once per app by the lifespan."""
-
-    settings: Settings
-    registry: Registry
-    planner: Any
-    pool: ComputePool
-    jobs: JobManager
-    metrics: Metrics
-    api_keys: list[str]
-    hands_dir: Path
-    plans_dir: Path
-    plan_lock: threading.Lock = field(default_factory=threading.Lock)
-    """Serialises ``planner.plan``: the planner solves its CasADi NLP outside its own lock, and concurrent calls
-    corrupt memory (seen as heap corruption with 2-4 threads); one plan at a time costs little since most of a
-    plan runs under the planner's lock anyway."""
-    _hand_cache: dict[str, repo.HandRecord] = field(default_factory=dict)
-    _lock: threading.Lock = field(default_factory=threading.Lock)
-
-    def hand(self, name: str, *, field: str = "hand") -> repo.HandRecord:
-        """The registered hand ``name`` (cached; :meth:`forget_hand` after a change)."""
-        with self._lock:
-            cached = self._hand_cache.get(name)
-        if cached is not None:
-            return cached
-        record = repo.get_hand(self.registry, name, field=field)
-        with self._lock:
-            self._hand_cache[name] = record
-        return record
-
-    def forget_hand(self, name: str) -> None:
-        """Drop ``name`` from the hand cache."""
-        with self._lock:
-            self._hand_cache.pop(name, None)
-
-
-def default_job_kinds() -> dict[str, JobKind]:
-    """The job kinds the service offers (validations and experiments once their modules exist)."""
-    from softsig_service.api.routes.jobs import available_job_kinds
-
-    return available_job_kinds()
-
-
-def register_builtin_hands(registry: Registry, settings: Settings) -> dict[str, str]:
-    """Register (or refresh) every built-in hand of ``settings.hands_dir``; returns name -> what happened."""
-    from softsig_service.api.jobs import inspect_hand
-    from softsig_service.hands.model import builtin_hand_names
-
-    done: dict[str, str] = {}
-    for name in builtin_hand_names(settings):
-        manifest = (settings.hands_dir / name / "hand.toml").resolve()
-        info = inspect_hand(str(manifest), settings.limits)
-        done[name] = repo.sync_builtin_hand(registry, name=name, manifest_path=str(manifest), info=info)
-    return done
 
 
 def _startup(settings: Settings, registry: Registry) -> Any:

@@ -14,7 +14,7 @@ from typing import Annotated
 from fastapi import Depends, Header, Request, Security
 from fastapi.security import APIKeyHeader
 
-from softsig_service.api.app import AppContext
+from softsig_service.api.context import AppContext
 from softsig_service.errors import PreconditionRequired, Unauthorized
 
 api_key_header = APIKeyHeader(

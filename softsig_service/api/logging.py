@@ -23,16 +23,13 @@ import sys
 import time
 import uuid
 from collections.abc import Sequence
-from contextvars import ContextVar
 from datetime import UTC, datetime
 from typing import Any
 
-from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram
 from starlette.routing import BaseRoute, Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-request_id_var: ContextVar[str | None] = ContextVar("softsig_request_id", default=None)
-"""The id of the request being served (None outside a request)."""
+from softsig_service.services.observability import Metrics, request_id_var
 
 _REQUEST_ID = re.compile(r"^[A-Za-z0-9._:\-]{1,128}$")
 _STANDARD_ATTRS = frozenset(vars(logging.LogRecord("", 0, "", 0, "", None, None))) | {
@@ -77,35 +74,6 @@ def configure_logging(level: str = "info") -> None:
         lg = logging.getLogger(name)
         lg.handlers.clear()
         lg.propagate = True
-
-
-class Metrics:
-    """The Prometheus metrics of one app (their own registry)."""
-
-    def __init__(self) -> None:
-        self.registry = CollectorRegistry(auto_describe=True)
-        self.requests = Counter(
-            "softsig_http_requests", "HTTP requests served", ["method", "route", "status"], registry=self.registry
-        )
-        self.latency = Histogram(
-            "softsig_http_request_duration_seconds",
-            "HTTP request latency [s] from the first byte received to the last byte sent",
-            ["method", "route"],
-            buckets=(0.001, 0.002, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0),
-            registry=self.registry,
-        )
-        self.in_progress = Gauge("softsig_http_requests_in_progress", "requests being served", registry=self.registry)
-        self.plan_seconds = Histogram(
-            "softsig_plan_seconds",
-            "planner wall time per plan [s]",
-            ["strategy"],
-            buckets=(0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.5, 2.0),
-            registry=self.registry,
-        )
-        self.jobs_running = Gauge("softsig_jobs_running", "jobs running in worker processes", registry=self.registry)
-        self.jobs_finished = Counter(
-            "softsig_jobs_finished", "jobs that reached a final status", ["kind", "status"], registry=self.registry
-        )
 
 
 def route_template(routes: Sequence[BaseRoute], scope: Scope) -> str:

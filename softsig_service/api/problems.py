@@ -31,9 +31,7 @@ anything unexpected                   500     internal-error (a bug: never from 
 
 from __future__ import annotations
 
-import json
 import logging
-import math
 import re
 from typing import Any
 
@@ -43,117 +41,20 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import Receive, Scope, Send
 
-from softsig_service.api.logging import request_id_var
 from softsig_service.api.schemas import UNION_TAGS
 from softsig_service.errors import (
-    Conflict,
-    HandNotFound,
-    ModelTooLarge,
-    NotFound,
-    PreconditionFailed,
-    PreconditionRequired,
-    RenderUnavailable,
     ServiceBusy,
     SoftsigError,
-    TimeLimitExceeded,
     Unauthorized,
 )
-
-PROBLEM_MEDIA_TYPE = "application/problem+json"
-TYPE_PREFIX = "urn:softsig:problem:"
-log = logging.getLogger("softsig.api")
-
-_STATUS: tuple[tuple[type[SoftsigError], int], ...] = (
-    (Unauthorized, 401),
-    (HandNotFound, 404),
-    (NotFound, 404),
-    (Conflict, 409),
-    (PreconditionFailed, 412),
-    (ModelTooLarge, 413),
-    (PreconditionRequired, 428),
-    (ServiceBusy, 503),
-    (RenderUnavailable, 503),
-    (TimeLimitExceeded, 422),
+from softsig_service.services.problems import (
+    PROBLEM_MEDIA_TYPE,
+    TITLES,
+    problem_body,
+    short_value,
+    slug_of,
+    softsig_problem,
 )
-_TITLES = {
-    400: "Bad request",
-    401: "Unauthorized",
-    403: "Forbidden",
-    404: "Not found",
-    405: "Method not allowed",
-    406: "Not acceptable",
-    409: "Conflict",
-    412: "Precondition failed",
-    413: "Content too large",
-    415: "Unsupported media type",
-    422: "Unprocessable content",
-    428: "Precondition required",
-    429: "Too many requests",
-    500: "Internal error",
-    503: "Service unavailable",
-}
-_MAX_VALUE_CHARS = 300
-
-
-def status_of(exc: SoftsigError) -> int:
-    """HTTP status of a :class:`SoftsigError` (422 for bad input not listed otherwise)."""
-    for cls, status in _STATUS:
-        if isinstance(exc, cls):
-            return status
-    return 422
-
-
-def _slug(name: str) -> str:
-    return re.sub(r"(?<!^)(?=[A-Z])", "-", name).lower()
-
-
-def short_value(value: Any) -> Any:
-    """A JSON-safe, bounded rendering of an offending value (long values become a shortened string)."""
-    if value is None or isinstance(value, bool | int):
-        return value
-    if isinstance(value, float):
-        return value if math.isfinite(value) else str(value)
-    if isinstance(value, str):
-        return value if len(value) <= _MAX_VALUE_CHARS else value[:_MAX_VALUE_CHARS] + "..."
-    try:
-        from softsig_service.api.schemas import to_jsonable
-
-        plain = to_jsonable(value)
-        text = json.dumps(plain)
-    except (TypeError, ValueError):
-        text = repr(value)
-        plain = text
-    if len(text) <= _MAX_VALUE_CHARS:
-        return plain
-    return text[:_MAX_VALUE_CHARS] + "..."
-
-
-def problem_body(
-    status: int,
-    *,
-    slug: str,
-    title: str | None = None,
-    detail: str | None = None,
-    instance: str | None = None,
-    **extensions: Any,
-) -> dict[str, Any]:
-    """A problem JSON object (extensions with value None are left out, except ``value`` when a field is named)."""
-    body: dict[str, Any] = {
-        "type": TYPE_PREFIX + slug,
-        "title": title or _TITLES.get(status, "Error"),
-        "status": status,
-    }
-    if detail is not None:
-        body["detail"] = detail
-    if instance is not None:
-        body["instance"] = instance
-    for key, value in extensions.items():
-        if value is not None:
-            body[key] = value
-    rid = request_id_var.get()
-    if rid is not None:
-        body["request_id"] = rid
-    return body
 
 
 def problem_response(status: int, body: dict[str, Any], headers: dict[str, str] | None = None) -> JSONResponse:
@@ -161,21 +62,7 @@ def problem_response(status: int, body: dict[str, Any], headers: dict[str, str] 
     return JSONResponse(body, status_code=status, media_type=PROBLEM_MEDIA_TYPE, headers=headers)
 
 
-def softsig_problem(exc: SoftsigError, instance: str | None = None) -> tuple[int, dict[str, Any]]:
-    """Status and problem body of a :class:`SoftsigError`."""
-    status = status_of(exc)
-    name = type(exc).__name__
-    body = problem_body(
-        status,
-        slug=_slug(name),
-        title=re.sub(r"(?<!^)(?=[A-Z])", " ", name).capitalize(),
-        detail=exc.message,
-        instance=instance,
-        field=exc.field,
-        value=short_value(exc.value),
-        choices=exc.choices,
-    )
-    return status, body
+log = logging.getLogger("softsig.api")
 
 
 async def _softsig_handler(request: Request, exc: Exception) -> JSONResponse:
@@ -261,7 +148,7 @@ async def _http_handler(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, StarletteHTTPException)
     status = exc.status_code
     detail = exc.detail if isinstance(exc.detail, str) else None
-    slug = "content-too-large" if status == 413 else _slug(_TITLES.get(status, "error").title().replace(" ", ""))
+    slug = "content-too-large" if status == 413 else slug_of(TITLES.get(status, "error").title().replace(" ", ""))
     extra = getattr(exc, "problem_extensions", {})
     body = problem_body(status, slug=slug, detail=detail, instance=request.url.path, **extra)
     return problem_response(status, body, dict(exc.headers or {}))

@@ -13,7 +13,6 @@ This module imports nothing heavy (no MuJoCo, no NumPy at import), so the client
 
 from __future__ import annotations
 
-import math
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
@@ -460,19 +459,3 @@ class Readiness(Out):
 
     status: Literal["ready", "not_ready"]
     checks: dict[str, str]
-
-
-def to_jsonable(value: Any) -> Any:
-    """``value`` with NumPy scalars and arrays made plain and non-finite floats made ``None`` (valid JSON)."""
-    if isinstance(value, dict):
-        return {str(k): to_jsonable(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [to_jsonable(v) for v in value]
-    if isinstance(value, bool) or value is None or isinstance(value, str | int):
-        return value
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    tolist = getattr(value, "tolist", None)  # NumPy arrays and scalars
-    if callable(tolist):
-        return to_jsonable(tolist())
-    return str(value)

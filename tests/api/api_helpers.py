@@ -7,8 +7,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from softsig_service.api.jobs import JobKind
 from softsig_service.config import REPO_HANDS_DIR, Settings
+from softsig_service.services.jobs import JobKind
 
 KEY = "test-key-0123456789"
 AUTH = {"X-API-Key": KEY}

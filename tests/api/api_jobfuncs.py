@@ -9,8 +9,8 @@ import sys
 import time
 from typing import Any
 
-from softsig_service.api.jobs import JobContext
 from softsig_service.errors import InvalidInput
+from softsig_service.services.jobs import JobContext
 
 
 def count(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:

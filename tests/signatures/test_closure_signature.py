@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from numpy.typing import ArrayLike, NDArray
 
 from softsig_service.errors import InvalidInput, InvalidTrajectory
+from softsig_service.experiments.closure_plot import magnitude_label, plot_closure_signature
 from softsig_service.geometry.pca import orient_axes, principal_components
 from softsig_service.geometry.transforms import quat_to_matrix
 from softsig_service.hands.trajectory import ClosureTrajectory
@@ -30,7 +31,6 @@ from softsig_service.signatures.closure import (
     mesh_closure_signature,
     pca_closure_signature,
 )
-from softsig_service.signatures.plot import magnitude_label, plot_closure_signature
 
 FAST = settings(max_examples=30, deadline=None)
 OCTAHEDRON = np.vstack([np.eye(3), -np.eye(3)])

@@ -13,12 +13,12 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
+from softsig_service.cli.experiments import validate
 from softsig_service.errors import InvalidInput
 from softsig_service.experiments.trial import TrialResult, default_planner, run_trial, shift_plan
 from softsig_service.gl_backend import render_unavailable_reason
 from softsig_service.objects import builtin_object
 from softsig_service.planning.planner import PlanRequest
-from softsig_service.simulation.commands import validate
 from softsig_service.simulation.rollout import REASONS, Perturbation, RolloutConfig, SimOutcome, judge
 
 LIFT_THRESHOLD = 0.5 * 0.15  # DESIGN §7: a carried object rose by at least half the 0.15 m lift

@@ -22,13 +22,13 @@ from fastapi import APIRouter, File, Path, Request, Response, UploadFile
 from starlette.concurrency import run_in_threadpool
 
 from softsig_service.api.deps import Ctx, IfMatchRequired, ReadAccess, WriteAccess
-from softsig_service.api.jobs import inspect_hand
 from softsig_service.api.routes.common import READ, WRITE, problem
 from softsig_service.api.schemas import HAND_NAME_PATTERN, HandList, HandOut
 from softsig_service.errors import Conflict, InvalidHandModel, InvalidManifest, ModelTooLarge, UnsafePath
 from softsig_service.hands.assets import check_relative_path
 from softsig_service.hands.manifest import HandManifest, manifest_from_dict
 from softsig_service.registry import repository as repo
+from softsig_service.services.tasks import inspect_hand
 
 router = APIRouter(prefix="/v1", tags=["hands"])
 HandPath = Annotated[str, Path(pattern=HAND_NAME_PATTERN, description="the hand's name")]

@@ -19,70 +19,26 @@ from fastapi import APIRouter, Path, Query
 from fastapi.responses import FileResponse, JSONResponse
 from starlette.concurrency import run_in_threadpool
 
-from softsig_service.api.app import AppContext
+from softsig_service.api.context import AppContext
 from softsig_service.api.deps import Ctx, ReadAccess, WriteAccess
-from softsig_service.api.jobs import JobKind, list_files, media_type, resolve_file
+from softsig_service.api.job_responses import accepted, job_out
 from softsig_service.api.routes.common import READ, WRITE, Limit, Offset, problem
 from softsig_service.api.schemas import (
     ExperimentIn,
     JobFiles,
     JobList,
     JobOut,
-    StiffnessSignatureIn,
     ValidationIn,
     object_json,
 )
 from softsig_service.errors import HandNotFound, InvalidInput, NotFound, ServiceBusy
 from softsig_service.objects import object_from_json
 from softsig_service.registry import repository as repo
-from softsig_service.registry.db import Registry
+from softsig_service.services.jobs import list_files, media_type, resolve_file
 
 router = APIRouter(prefix="/v1", tags=["jobs"])
 JobId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="a job's id")]
 
-
-def _store_stiffness(registry: Registry, params: dict[str, Any], result: dict[str, Any]) -> dict[str, Any]:
-    """Store a finished stiffness signature as a new version of the hand (the job's ``on_result`` hook)."""
-    rec = repo.add_signature(
-        registry,
-        params["hand"],
-        kind="stiffness",
-        method=str(params["object"].get("name") or params["object"].get("kind")),
-        source="simulation",
-        data=result["signature"],
-        params={"object": params["object"]},
-        hand_revision=params.get("hand_revision"),
-        if_match=params.get("if_match"),
-    )
-    return {
-        "hand": rec.hand,
-        "version": rec.version,
-        "etag": rec.etag,
-        "links": {"signature": f"/v1/hands/{rec.hand}/signatures/{rec.version}"},
-    }
-
-
-def available_job_kinds() -> dict[str, JobKind]:
-    """The job kinds this service runs, by name."""
-    kinds = (
-        JobKind(
-            "stiffness_signature",
-            "softsig_service.api.jobs:run_stiffness_signature",
-            "grasp an object in MuJoCo: 6x6 stiffness and break forces; stored as a signature version",
-            on_result=_store_stiffness,
-        ),
-        JobKind(
-            "validation",
-            "softsig_service.api.jobs:run_validation",
-            "simulate a plan's grasp in MuJoCo, trials under object-pose noise",
-        ),
-        JobKind(
-            "experiment",
-            "softsig_service.api.jobs:run_experiment",
-            "the reference experiment (Table I): conditions x objects x strategies x trials",
-        ),
-    )
-    return {k.name: k for k in kinds}
 
 def _hand_for_job(ctx: AppContext, name: str) -> repo.HandRecord:
     try:
@@ -151,43 +107,6 @@ async def create_experiment(ctx: Ctx, body: ExperimentIn) -> JSONResponse:
     params = {"name": body.name, "hand": hand.name, "trials": body.trials, "seed": body.seed, "workers": body.workers}
     job = await ctx.jobs.submit("experiment", params, body.time_limit, private={"hand_ref": _hand_ref(hand)})
     return accepted(job)
-
-
-def job_out(rec: repo.JobRecord) -> dict[str, Any]:
-    """The JSON of :class:`JobOut`."""
-    return {
-        "id": rec.id,
-        "kind": rec.kind,
-        "status": rec.status,
-        "progress": rec.progress,
-        "message": rec.message,
-        "params": rec.params,
-        "result": rec.result,
-        "error": rec.error,
-        "time_limit": rec.time_limit,
-        "cancel_requested": rec.cancel_requested,
-        "created_at": rec.created_at,
-        "started_at": rec.started_at,
-        "finished_at": rec.finished_at,
-        "links": {"self": f"/v1/jobs/{rec.id}", "files": f"/v1/jobs/{rec.id}/files"},
-    }
-
-
-def accepted(rec: repo.JobRecord) -> JSONResponse:
-    """``202 Accepted`` with ``Location: /v1/jobs/{id}`` and the job."""
-    body = JobOut.model_validate(job_out(rec)).model_dump(mode="json")
-    return JSONResponse(body, status_code=202, headers={"Location": f"/v1/jobs/{rec.id}"})
-
-
-async def stiffness_signature_version(
-    ctx: AppContext, hand: repo.HandRecord, body: StiffnessSignatureIn, if_match: str | None
-) -> repo.JobRecord:
-    """Submit the stiffness-signature job of ``hand`` (stored as a new version when it succeeds)."""
-    params = {"hand": hand.name, "object": object_json(body.object), "hand_revision": hand.revision}
-    if if_match is not None:
-        params["if_match"] = if_match
-    private = {"manifest_path": hand.manifest_path, "limits": ctx.settings.limits.model_dump()}
-    return await ctx.jobs.submit("stiffness_signature", params, private=private)
 
 
 @router.get("/jobs", response_model=JobList, dependencies=[ReadAccess], responses=READ, summary="List jobs")

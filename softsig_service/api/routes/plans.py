@@ -15,13 +15,14 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Path, Query, Response
 from starlette.concurrency import run_in_threadpool
 
-from softsig_service.api.app import AppContext
+from softsig_service.api.context import AppContext
 from softsig_service.api.deps import Ctx, ReadAccess, WriteAccess
-from softsig_service.api.jobs import render_plan_png
 from softsig_service.api.routes.common import READ, WRITE, Limit, Offset, problem
-from softsig_service.api.schemas import HAND_NAME_PATTERN, PlanIn, PlanList, PlanOut, object_json, to_jsonable
+from softsig_service.api.schemas import HAND_NAME_PATTERN, PlanIn, PlanList, PlanOut, object_json
 from softsig_service.errors import HandNotFound, InvalidInput
 from softsig_service.registry import repository as repo
+from softsig_service.services.plan_image import render_plan_png
+from softsig_service.services.serialize import to_jsonable
 
 router = APIRouter(prefix="/v1", tags=["plans"])
 PlanId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="a stored plan's id")]

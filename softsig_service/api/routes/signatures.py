@@ -15,7 +15,7 @@ from fastapi import APIRouter, Body, File, Form, Path, Query, Response, UploadFi
 from starlette.concurrency import run_in_threadpool
 
 from softsig_service.api.deps import Ctx, IfMatchOptional, ReadAccess, WriteAccess
-from softsig_service.api.jobs import closure_signature, markers_signature
+from softsig_service.api.job_responses import accepted, stiffness_signature_version
 from softsig_service.api.routes.common import READ, WRITE, Limit, Offset, problem
 from softsig_service.api.schemas import (
     CRITERION_DESCRIPTION,
@@ -29,6 +29,7 @@ from softsig_service.api.schemas import (
 )
 from softsig_service.errors import InvalidTrajectory
 from softsig_service.registry import repository as repo
+from softsig_service.services.tasks import closure_signature, markers_signature
 
 router = APIRouter(prefix="/v1", tags=["signatures"])
 HandPath = Annotated[str, Path(pattern=HAND_NAME_PATTERN, description="the hand's name")]
@@ -108,8 +109,6 @@ async def create_signature(
             )
         )  # fmt: skip
         return _created(response, rec)
-    from softsig_service.api.routes.jobs import accepted, stiffness_signature_version
-
     job = await stiffness_signature_version(ctx, record, body, if_match)
     return accepted(job)
 

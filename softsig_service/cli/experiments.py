@@ -2,7 +2,7 @@
 
 Register them in ``softsig_service/cli.py``::
 
-    from softsig_service.simulation.commands import experiment_app, validate
+    from softsig_service.cli.experiments import experiment_app, validate
 
     app.command("validate")(validate)
     app.add_typer(experiment_app, name="experiment")
@@ -19,8 +19,8 @@ from typing import Annotated, Any
 
 import typer
 
-from softsig_service.cli_support import CriterionOption, CsMethodOption, PlacementOption, parse_object, plan_options
-from softsig_service.cli_support import errors_to_exit as _errors
+from softsig_service.cli.options import CriterionOption, CsMethodOption, PlacementOption, parse_object, plan_options
+from softsig_service.cli.options import errors_to_exit as _errors
 from softsig_service.errors import InvalidInput, RenderUnavailable
 
 FRAME_SIZE = (640, 480)

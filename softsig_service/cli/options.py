@@ -63,3 +63,22 @@ PlacementOption = Annotated[
 def plan_options(cs_method: str, criterion: str, placement: str) -> dict[str, str]:
     """The :class:`PlanRequest` fields of the three plan options above (validated by the request)."""
     return {"cs_method": cs_method, "cs_criterion": criterion, "placement": placement}
+
+
+def write_json(path: Path, data: Any) -> None:
+    """Write ``data`` as one line of JSON to ``path`` (parent folders made)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data) + "\n", encoding="utf-8")
+
+
+def parse_floats(text: str, n: int, field: str) -> tuple[float, ...]:
+    """``n`` comma-separated numbers from ``text``; :class:`InvalidInput` naming ``field`` otherwise."""
+    from softsig_service.errors import InvalidInput
+
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise InvalidInput("expected comma-separated numbers", field=field, value=text) from None
+    if len(values) != n:
+        raise InvalidInput(f"expected {n} comma-separated numbers", field=field, value=text)
+    return values

@@ -12,6 +12,7 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
+from softsig_service.cli.experiments import experiment_app
 from softsig_service.errors import Conflict, InvalidInput
 from softsig_service.experiments.campaign import read_records, run_campaign
 from softsig_service.experiments.campaign_spec import PAPER_TABLE1, TABLE1_CONDITIONS, CampaignSpec, trial_seed
@@ -19,7 +20,6 @@ from softsig_service.experiments.report import report_markdown, write_report
 from softsig_service.experiments.statistics import fisher_p, summarize, wilson_interval
 from softsig_service.experiments.trial import run_trial
 from softsig_service.objects import builtin_object
-from softsig_service.simulation.commands import experiment_app
 
 TINY = CampaignSpec(hand="pisa_iit_softhand", conditions=((0.1, 0.01),), trials=1, seed=3)
 """One condition, three objects, two strategies, one trial per cell: 6 trials."""

@@ -1,0 +1,50 @@
+"""What the job routes answer: a job's JSON, ``202 Accepted`` with its location, and the submission of a
+stiffness-signature job (shared by ``/v1/jobs`` and the signature routes, so that no route imports another).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi.responses import JSONResponse
+
+from softsig_service.api.context import AppContext
+from softsig_service.api.schemas import JobOut, StiffnessSignatureIn, object_json
+from softsig_service.registry import repository as repo
+
+
+def job_out(rec: repo.JobRecord) -> dict[str, Any]:
+    """The JSON of :class:`JobOut`."""
+    return {
+        "id": rec.id,
+        "kind": rec.kind,
+        "status": rec.status,
+        "progress": rec.progress,
+        "message": rec.message,
+        "params": rec.params,
+        "result": rec.result,
+        "error": rec.error,
+        "time_limit": rec.time_limit,
+        "cancel_requested": rec.cancel_requested,
+        "created_at": rec.created_at,
+        "started_at": rec.started_at,
+        "finished_at": rec.finished_at,
+        "links": {"self": f"/v1/jobs/{rec.id}", "files": f"/v1/jobs/{rec.id}/files"},
+    }
+
+
+def accepted(rec: repo.JobRecord) -> JSONResponse:
+    """``202 Accepted`` with ``Location: /v1/jobs/{id}`` and the job."""
+    body = JobOut.model_validate(job_out(rec)).model_dump(mode="json")
+    return JSONResponse(body, status_code=202, headers={"Location": f"/v1/jobs/{rec.id}"})
+
+
+async def stiffness_signature_version(
+    ctx: AppContext, hand: repo.HandRecord, body: StiffnessSignatureIn, if_match: str | None
+) -> repo.JobRecord:
+    """Submit the stiffness-signature job of ``hand`` (stored as a new version when it succeeds)."""
+    params = {"hand": hand.name, "object": object_json(body.object), "hand_revision": hand.revision}
+    if if_match is not None:
+        params["if_match"] = if_match
+    private = {"manifest_path": hand.manifest_path, "limits": ctx.settings.limits.model_dump()}
+    return await ctx.jobs.submit("stiffness_signature", params, private=private)

@@ -1,0 +1,110 @@
+"""``softsig hands``: list, show, close and render the hands of the library."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from softsig_service.cli.options import emit as _emit
+from softsig_service.cli.options import errors_to_exit as _errors
+from softsig_service.cli.options import write_json
+from softsig_service.config import Settings
+
+hands_app = typer.Typer(help="The hand library: list, show, close and render hands.", no_args_is_help=True)
+
+
+@hands_app.command("list")
+def hands_list(as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False) -> None:
+    """List the built-in hands."""
+    from softsig_service.hands.model import builtin_hand_names, load_hand
+
+    with _errors():
+        settings = Settings()
+        rows = []
+        for name in builtin_hand_names(settings):
+            hand = load_hand(name, settings)
+            rows.append(
+                {
+                    "name": name,
+                    "kind": hand.manifest.kind,
+                    "joints": int(hand.model.njnt),
+                    "actuators": int(hand.model.nu),
+                    "reference_points": len(hand.points),
+                    "description": hand.manifest.description,
+                }
+            )
+
+        def text() -> str:
+            lines = [f"{'name':20s} {'kind':15s} {'joints':>6s} {'acts':>5s}  description"]
+            lines += [
+                f"{r['name']:20s} {r['kind']:15s} {r['joints']:6d} {r['actuators']:5d}  {r['description']}"
+                for r in rows
+            ]
+            return "\n".join(lines)
+
+        _emit(rows, as_json, text)
+
+
+@hands_app.command("show")
+def hands_show(
+    hand: Annotated[str, typer.Argument(help="built-in name or path to hand.toml")],
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+) -> None:
+    """Show one hand: model statistics, reference points, closure and physical parameters."""
+    from softsig_service.hands.model import load_hand
+    from softsig_service.hands.summary import hand_info
+
+    with _errors():
+        info = hand_info(load_hand(hand, Settings()))
+
+        def text() -> str:
+            lines = [
+                f"{info['name']}: {info['description']}",
+                f"  model: {info['model_file']} ({info['model_format']})",
+            ]
+            lines.append(f"  bodies {info['bodies']}, joints {len(info['joints'])}, actuators {info['actuators']}")
+            lines.append(f"  mass {info['mass']:.3f} kg, mount body '{info['mount']}' = hand frame")
+            lines.append("  reference points: " + ", ".join(p["name"] for p in info["reference_points"]))
+            lines.append(f"  closure: {info['closure']}")
+            return "\n".join(lines)
+
+        _emit(info, as_json, text)
+
+
+@hands_app.command("close")
+def hands_close(
+    hand: Annotated[str, typer.Argument(help="built-in name or path to hand.toml")],
+    out: Annotated[Path, typer.Option("--out", help="trajectory JSON to write")],
+    gravity: Annotated[bool | None, typer.Option("--gravity/--no-gravity", help="override the manifest")] = None,
+) -> None:
+    """Simulate a free-space closure and write the reference-point trajectories (hand frame, metres)."""
+    from softsig_service.hands.closure import simulate_closure
+    from softsig_service.hands.model import load_hand
+    from softsig_service.hands.summary import closure_summary
+
+    with _errors():
+        traj = simulate_closure(load_hand(hand, Settings()), gravity=gravity, surface_points=0)
+        write_json(out, traj.to_json_dict())
+        s = closure_summary(traj)
+        typer.echo(
+            f"{traj.hand}: {s['frames']} frames over {s['duration']:.2f} s, {s['points']} points; fingertip spread "
+            f"{s['spread_open'] * 1000:.1f} -> {s['spread_closed'] * 1000:.1f} mm; wrote {out}"
+        )
+
+
+@hands_app.command("render")
+def hands_render(
+    hand: Annotated[str, typer.Argument(help="built-in name or path to hand.toml")],
+    out: Annotated[Path, typer.Option("--out", help="PNG to write")],
+    size: Annotated[int, typer.Option(help="width and height of each view [px]", min=64, max=2048)] = 480,
+) -> None:
+    """Render the hand open and closed side by side (offscreen)."""
+    from softsig_service.hands.model import load_hand
+    from softsig_service.hands.render import render_open_closed, save_png
+
+    with _errors():
+        image = render_open_closed(load_hand(hand, Settings()), width=size, height=size)
+        save_png(image, out)
+        typer.echo(f"wrote {out} ({image.shape[1]}x{image.shape[0]})")

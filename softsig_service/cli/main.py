@@ -1,0 +1,162 @@
+"""The ``softsig`` command line (typer): hands, signatures, planning, validation and the service."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from softsig_service.cli.experiments import experiment_app, validate
+from softsig_service.cli.hands import hands_app
+from softsig_service.cli.options import CriterionOption, CsMethodOption, PlacementOption, parse_floats, plan_options
+from softsig_service.cli.options import emit as _emit
+from softsig_service.cli.options import errors_to_exit as _errors
+from softsig_service.cli.options import parse_object as _object_arg
+from softsig_service.cli.signatures import signature_app
+from softsig_service.config import Settings
+
+app = typer.Typer(
+    help="softsig: closure and stiffness signatures of soft hands, and top-grasp planning.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+)
+app.add_typer(hands_app, name="hands")
+app.add_typer(signature_app, name="signature")
+app.command("validate")(validate)
+app.add_typer(experiment_app, name="experiment")
+
+
+@app.command("plan")
+def plan(
+    hand: Annotated[str, typer.Option("--hand", help="built-in name or path to hand.toml")],
+    obj: Annotated[str, typer.Option("--object", help="box | apple | cylinder | PATH.json")],
+    x: Annotated[float, typer.Option("--x", help="object centre x in base_link [m]")] = 0.5,
+    y: Annotated[float, typer.Option("--y", help="object centre y in base_link [m]")] = 0.0,
+    yaw: Annotated[float, typer.Option("--yaw", help="object yaw about world z [rad]")] = 0.0,
+    strategy: Annotated[str, typer.Option("--strategy", help="S (bounding box) | C (closure signature)")] = "C",
+    current_q: Annotated[
+        str | None, typer.Option("--current-q", help="current UR5 joints q1,...,q6 [rad] (default: home)")
+    ] = None,
+    closing_axis: Annotated[str, typer.Option(help="object axis the CS closes across: minor | major")] = "minor",
+    cs_method: CsMethodOption = "ellipsoid",
+    criterion: CriterionOption = "absolute",
+    placement: PlacementOption = "open_centre",
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+) -> None:
+    """Plan a UR5 top grasp of an object on the table with strategy S or C."""
+    from softsig_service.planning.planner import Planner, PlanRequest
+
+    with _errors():
+        q = parse_floats(current_q, 6, "current_q") if current_q is not None else None
+        request = PlanRequest(
+            hand=hand, obj=_object_arg(obj, x, y, yaw), strategy=strategy,  # type: ignore[arg-type]
+            current_q=q, closing_axis=closing_axis,  # type: ignore[arg-type]
+            **plan_options(cs_method, criterion, placement),  # type: ignore[arg-type]
+        )  # fmt: skip
+        result = Planner().plan(request)
+        data = result.to_json_dict()
+
+        def text() -> str:
+            lines = [f"{result.hand} / {request.obj.name or request.obj.kind} / strategy {result.strategy}: "
+                     + ("success" if result.success else "FAILED: " + ", ".join(result.reasons))]  # fmt: skip
+            if result.grasp_pose is not None:
+                p = result.grasp_pose[:3, 3]
+                lines.append(f"  grasp flange at ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m in base_link")
+            if result.joint_positions is not None:
+                lines.append("  joints " + ", ".join(f"{v:+.4f}" for v in result.joint_positions) + " rad")
+            qual = result.quality
+            if qual["alignment_error"] is not None:
+                lines.append(f"  alignment error {qual['alignment_error']:.2e} rad, clearance {qual['clearance']}")
+            lines.append(f"  time {result.timing['total'] * 1e3:.1f} ms")
+            return "\n".join(lines)
+
+        _emit(data, as_json, text)
+        if not result.success:
+            raise typer.Exit(1)
+
+
+@app.command("summary")
+def summary(as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False) -> None:
+    """Close every built-in hand and print what the closure does to its fingertips."""
+    from softsig_service.hands.closure import simulate_closure
+    from softsig_service.hands.model import builtin_hand_names, load_hand
+    from softsig_service.hands.summary import closure_summary
+
+    with _errors():
+        settings = Settings()
+        rows = [
+            closure_summary(simulate_closure(load_hand(n, settings), surface_points=0))
+            for n in builtin_hand_names(settings)
+        ]
+
+        def text() -> str:
+            lines = [f"{'hand':20s} {'frames':>6s} {'open [mm]':>10s} {'closed [mm]':>11s} {'ratio':>6s}"]
+            lines += [
+                f"{r['hand']:20s} {r['frames']:6d} {r['spread_open'] * 1000:10.1f} "
+                f"{r['spread_closed'] * 1000:11.1f} {r['spread_ratio']:6.2f}"
+                for r in rows
+            ]
+            return "\n".join(lines)
+
+        _emit(rows, as_json, text)
+
+
+@app.command("serve")
+def serve(
+    host: Annotated[str | None, typer.Option(help="address to listen on (default SOFTSIG_HOST or 127.0.0.1)")] = None,
+    port: Annotated[int | None, typer.Option(help="port (default SOFTSIG_PORT or 8000)", min=0, max=65535)] = None,
+    db: Annotated[
+        Path | None, typer.Option("--db", help="SQLite file of the registry (default in SOFTSIG_DATA_DIR)")
+    ] = None,
+) -> None:
+    """Run the REST service (uvicorn): hand and signature registry, plans, validation jobs; docs at /docs."""
+    import uvicorn
+
+    from softsig_service.api.app import create_app
+    from softsig_service.api.logging import configure_logging
+
+    with _errors():
+        overrides: dict[str, Any] = {}
+        if host is not None:
+            overrides["host"] = host
+        if port is not None:
+            overrides["port"] = port
+        if db is not None:
+            overrides["database_url"] = f"sqlite:///{db.expanduser().resolve()}"
+        settings = Settings(**overrides)
+        configure_logging(settings.log_level)
+        uvicorn.run(
+            create_app(settings), host=settings.host, port=settings.port, log_config=None, access_log=False,
+            timeout_graceful_shutdown=10,
+        )  # fmt: skip
+
+
+@app.command("openapi")
+def openapi(
+    out: Annotated[Path, typer.Option("--out", help="file to write")] = Path("openapi/openapi.json"),
+    check: Annotated[bool, typer.Option("--check", help="exit 1 if the file differs from the app's schema")] = False,
+) -> None:
+    """Export the service's OpenAPI document (sorted keys, indent 2), or check the committed one."""
+    from softsig_service.api.app import openapi_json
+
+    text = openapi_json()
+    if check:
+        current = out.read_text(encoding="utf-8") if out.is_file() else None
+        if current != text:
+            typer.echo(f"{out} is out of date: run `softsig openapi --out {out}`", err=True)
+            raise typer.Exit(1)
+        typer.echo(f"{out} is up to date")
+        return
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text, encoding="utf-8")
+    typer.echo(f"wrote {out}")
+
+
+def main() -> None:
+    """Entry point for ``python -m softsig_service.cli``."""
+    app(prog_name="softsig")
+
+
+if __name__ == "__main__":
+    main()

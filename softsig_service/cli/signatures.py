@@ -1,0 +1,144 @@
+"""``softsig signature``: the closure and stiffness signatures of a hand."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from softsig_service.cli.options import emit as _emit
+from softsig_service.cli.options import errors_to_exit as _errors
+from softsig_service.cli.options import parse_object as _object_arg
+from softsig_service.config import Settings
+
+signature_app = typer.Typer(help="Closure and stiffness signatures of a hand.", no_args_is_help=True)
+
+
+@signature_app.command("closure")
+def signature_closure(
+    hand: Annotated[str | None, typer.Argument(help="built-in name or path to hand.toml (simulated closure)")] = None,
+    markers: Annotated[
+        Path | None, typer.Option("--markers", help="tracked markers instead: CSV (time,point,x,y,z) or JSON")
+    ] = None,
+    method: Annotated[str, typer.Option(help="ellipsoid | pca | mesh")] = "ellipsoid",
+    criterion: Annotated[
+        str,
+        typer.Option(
+            help="ellipsoid method: absolute (change of the half-width [m], the default) | relative (that change "
+            "/ the initial half-width); ignored by pca and mesh"
+        ),
+    ] = "absolute",
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    plot: Annotated[Path | None, typer.Option("--plot", help="PNG/PDF/SVG of points, ellipsoids and the CS")] = None,
+) -> None:
+    """Compute a hand's closure signature (CS) from a simulated closure or from tracked markers.
+
+    Everything is in the hand frame; the ellipsoid criterion is in the JSON's ``params.criterion``.
+    """
+    from softsig_service.errors import InvalidInput
+    from softsig_service.signatures.closure import METHODS, check_criterion, compute_closure_signature
+
+    with _errors():
+        if method not in METHODS:
+            raise InvalidInput("unknown closure-signature method", field="method", value=method, choices=METHODS)
+        the_criterion = check_criterion(criterion)
+        if (hand is None) == (markers is None):
+            raise InvalidInput("give either a hand or --markers FILE", field="hand")
+        if markers is not None:
+            from softsig_service.signatures.markers import load_markers
+
+            traj = load_markers(markers)
+        else:
+            from softsig_service.hands.closure import simulate_closure
+            from softsig_service.hands.model import load_hand
+
+            assert hand is not None
+            traj = simulate_closure(load_hand(hand, Settings()), surface_points=None if method == "mesh" else 0)
+        cs = compute_closure_signature(traj, method, criterion=the_criterion)
+        if plot is not None:
+            from softsig_service.experiments.closure_plot import plot_closure_signature
+
+            plot_closure_signature(traj, cs, plot)
+        data = cs.to_json_dict()
+
+        def text() -> str:
+            ax = ", ".join(f"{v:+.3f}" for v in cs.axis)
+            how = f"{method}, {cs.params['criterion']} criterion" if "criterion" in cs.params else method
+            lines = [
+                f"{traj.hand}: closure signature ({how}) in the hand frame",
+                f"  axis        ({ax})",
+                f"  anchor      ({', '.join(f'{v:.4f}' for v in cs.anchor)}) m",
+                f"  magnitude   {cs.magnitude:+.4f}  [{data['extras'].get('magnitude_unit', '')}]",
+                f"  deformation {', '.join(f'{v:+.4f}' for v in cs.deformation)}",
+                f"  distinctness {cs.distinctness:.3g}" + ("  (ambiguous)" if cs.ambiguous else ""),
+            ]
+            if plot is not None:
+                lines.append(f"  wrote {plot}")
+            return "\n".join(lines)
+
+        _emit(data, as_json, text)
+
+
+@signature_app.command("stiffness")
+def signature_stiffness(
+    hand: Annotated[str, typer.Argument(help="built-in name or path to hand.toml")],
+    obj: Annotated[
+        str, typer.Option("--object", help="box | apple | cylinder | sphere:R (radius [m]) | PATH.json")
+    ] = "apple",
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    plot: Annotated[Path | None, typer.Option("--plot", help="PNG of break forces and the stiffness ellipsoid")] = None,
+    axes_only: Annotated[
+        bool, typer.Option("--axes-only", help="pull along +-x, +-y, +-z only (6 directions)")
+    ] = False,
+) -> None:
+    """Grasp an object in MuJoCo: 6x6 grasp stiffness at the object and break forces per pull direction."""
+    from softsig_service.hands.model import load_hand
+    from softsig_service.simulation.pullout import AXIS_DIRECTIONS
+    from softsig_service.simulation.stiffness_signature import compute_stiffness_signature
+
+    with _errors():
+        the_obj = _stiffness_object(obj)
+        ss = compute_stiffness_signature(
+            load_hand(hand, Settings()), the_obj, directions=AXIS_DIRECTIONS if axes_only else None
+        )
+        if plot is not None:
+            from softsig_service.experiments.stiffness_plot import plot_stiffness_signature
+
+            plot_stiffness_signature(ss, plot)
+        data = ss.to_json_dict()
+
+        def text() -> str:
+            pt, pr = ss.principal_translational, ss.principal_rotational
+            held = data["parameters"]["grasp"]["held"]
+            lines = [
+                f"{hand}: stiffness signature on {data['object'].get('name') or data['object'].get('kind')} "
+                f"(hand frame){'' if held else ' - the hand does not hold the object on its own'}",
+                "  translational stiffness [N/m]  " + ", ".join(f"{v:.4g}" for v in pt.values),
+                "  rotational stiffness [N·m/rad] " + ", ".join(f"{v:.4g}" for v in pr.values),
+                "  break forces [N]:",
+            ]
+            for b in ss.break_forces:
+                d = ", ".join(f"{v:+.2f}" for v in b.direction)
+                lines.append(f"    ({d})  {b.force:7.2f}  {b.reason}")
+            if plot is not None:
+                lines.append(f"  wrote {plot}")
+            return "\n".join(lines)
+
+        _emit(data, as_json, text)
+
+
+def _stiffness_object(spec: str) -> Any:
+    """``box|apple|cylinder``, ``sphere:R`` (radius [m]) or a JSON file: the object held in the hand."""
+    from softsig_service.errors import InvalidInput
+    from softsig_service.objects import BUILTIN_NAMES, builtin_object, sphere
+
+    if spec in BUILTIN_NAMES:
+        return builtin_object(spec)
+    if spec.startswith("sphere:"):
+        try:
+            radius = float(spec.split(":", 1)[1])
+        except ValueError:
+            raise InvalidInput("sphere:R needs a radius in metres", field="object", value=spec) from None
+        return sphere(radius, mass=0.1)
+    return _object_arg(spec, 0.5, 0.0, 0.0)

@@ -1,0 +1,68 @@
+"""The kinds of jobs the service runs, the work the API and the CLI share: stiffness signatures (stored as a new
+signature version when the job succeeds), validations in MuJoCo and the reference experiment.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from softsig_service.config import Settings
+from softsig_service.hands.model import builtin_hand_names
+from softsig_service.registry import repository as repo
+from softsig_service.registry.db import Registry
+from softsig_service.services.jobs import JobKind
+from softsig_service.services.tasks import inspect_hand
+
+
+def store_stiffness_signature(registry: Registry, params: dict[str, Any], result: dict[str, Any]) -> dict[str, Any]:
+    """Store a finished stiffness signature as a new version of the hand (the job's ``on_result`` hook)."""
+    rec = repo.add_signature(
+        registry,
+        params["hand"],
+        kind="stiffness",
+        method=str(params["object"].get("name") or params["object"].get("kind")),
+        source="simulation",
+        data=result["signature"],
+        params={"object": params["object"]},
+        hand_revision=params.get("hand_revision"),
+        if_match=params.get("if_match"),
+    )
+    return {
+        "hand": rec.hand,
+        "version": rec.version,
+        "etag": rec.etag,
+        "links": {"signature": f"/v1/hands/{rec.hand}/signatures/{rec.version}"},
+    }
+
+
+def default_job_kinds() -> dict[str, JobKind]:
+    """The job kinds this service runs, by name."""
+    kinds = (
+        JobKind(
+            "stiffness_signature",
+            "softsig_service.services.tasks:run_stiffness_signature",
+            "grasp an object in MuJoCo: 6x6 stiffness and break forces; stored as a signature version",
+            on_result=store_stiffness_signature,
+        ),
+        JobKind(
+            "validation",
+            "softsig_service.services.tasks:run_validation",
+            "simulate a plan's grasp in MuJoCo, trials under object-pose noise",
+        ),
+        JobKind(
+            "experiment",
+            "softsig_service.services.tasks:run_experiment",
+            "the reference experiment (Table I): conditions x objects x strategies x trials",
+        ),
+    )
+    return {k.name: k for k in kinds}
+
+
+def register_builtin_hands(registry: Registry, settings: Settings) -> dict[str, str]:
+    """Register (or refresh) every built-in hand of ``settings.hands_dir``; returns name -> what happened."""
+    done: dict[str, str] = {}
+    for name in builtin_hand_names(settings):
+        manifest = (settings.hands_dir / name / "hand.toml").resolve()
+        info = inspect_hand(str(manifest), settings.limits)
+        done[name] = repo.sync_builtin_hand(registry, name=name, manifest_path=str(manifest), info=info)
+    return done
