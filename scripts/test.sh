@@ -9,4 +9,5 @@ PY="${PYTHON:-python3}"
 .venv/bin/ruff check softsig_service tests benchmarks
 .venv/bin/ruff format --check softsig_service tests benchmarks
 .venv/bin/mypy
+.venv/bin/lint-imports --no-cache
 .venv/bin/python -m pytest -n 2 "$@"

@@ -37,6 +37,11 @@ class Settings(BaseSettings):
 
     hands_dir: Path = Field(REPO_HANDS_DIR, description="folder of the built-in hands")
     limits: ModelLimits = Field(default_factory=ModelLimits)
+    robots_dir: Path | None = Field(
+        None,
+        description="example-robot-data's robots folder (the one holding ur_description); default: the installed "
+        "package's",
+    )
 
     # -- the REST service (softsig serve; docs/api.md) ------------------------------------------------------
     data_dir: Path = Field(
@@ -99,3 +104,9 @@ class Settings(BaseSettings):
         if self.database_url:
             return self.database_url
         return f"sqlite:///{(self.data_dir / 'registry.sqlite3').resolve()}"
+
+
+def default_settings() -> Settings:
+    """The default settings, without reading the environment: what library code uses when no settings are
+    passed in (entry points build :class:`Settings` from the environment and pass them down)."""
+    return Settings.model_construct(limits=ModelLimits.model_construct())

@@ -8,8 +8,8 @@ Frames and units:
 * Joint positions ``q`` are ``(6,)`` arrays in [rad], in the order of :data:`JOINT_NAMES`.
 
 The model files are never copied: they are located at run time in the installed example-robot-data package
-(``cmeel.prefix/share/example-robot-data/robots``), or in the folder named by the environment variable
-``SOFTSIG_ROBOTS_DIR`` (the ``robots`` folder that holds ``ur_description``). See :func:`find_robots_dir`.
+(``cmeel.prefix/share/example-robot-data/robots``), or in a folder the caller names (the ``robots`` folder that
+holds ``ur_description``; the service's setting ``robots_dir``, ``SOFTSIG_ROBOTS_DIR``). See :func:`find_robots_dir`.
 
 Inverse kinematics (:meth:`UR5.solve_ik`) is a damped least-squares (Levenberg–Marquardt) iteration on the
 SE(3) log error ``log6(T_fk^-1 T_target)`` with the frame Jacobian in the LOCAL frame, restarted from several
@@ -43,7 +43,6 @@ from softsig_service.geometry.transforms import as_finite_array, check_transform
 
 FloatArray = NDArray[np.float64]
 
-ROBOTS_DIR_ENV = "SOFTSIG_ROBOTS_DIR"
 """Environment variable naming the example-robot-data ``robots`` folder (overrides the search)."""
 
 URDF_RELATIVE = Path("ur_description/urdf/ur5_robot.urdf")
@@ -104,18 +103,17 @@ def _candidate_roots() -> Iterator[Path]:
             yield p
 
 
-def find_robots_dir() -> Path:
+def find_robots_dir(override: Path | None = None) -> Path:
     """The example-robot-data ``robots`` folder (the one that holds ``ur_description``).
 
-    ``$SOFTSIG_ROBOTS_DIR`` wins when set (and must hold ``ur_description/urdf/ur5_robot.urdf``); otherwise
+    ``override`` wins when given (and must hold ``ur_description/urdf/ur5_robot.urdf``); otherwise
     ``cmeel.prefix/share/example-robot-data/robots`` is looked up under the site-packages of this interpreter
     and the entries of ``sys.path``. Raises ``FileNotFoundError`` listing what was searched.
     """
-    override = os.environ.get(ROBOTS_DIR_ENV)
-    if override:
+    if override is not None:
         p = Path(override).expanduser().resolve()
         if not (p / URDF_RELATIVE).is_file():
-            raise FileNotFoundError(f"${ROBOTS_DIR_ENV}={override!r} does not contain {URDF_RELATIVE}")
+            raise FileNotFoundError(f"robots_dir={str(override)!r} does not contain {URDF_RELATIVE}")
         return p
     searched: list[str] = []
     for root in _candidate_roots():
@@ -125,7 +123,7 @@ def find_robots_dir() -> Path:
             return p
     raise FileNotFoundError(
         "example-robot-data's robots folder was not found (install the 'example-robot-data' package or set "
-        f"${ROBOTS_DIR_ENV}); searched: {', '.join(searched)}"
+        f"SOFTSIG_ROBOTS_DIR); searched: {', '.join(searched)}"
     )
 
 
@@ -599,7 +597,8 @@ class UR5:
         return IKResult(False, q_bad if q_bad_w is None else q_bad_w, pe, re, total_it, tried, "unreachable")
 
 
-@lru_cache(maxsize=1)
-def load_ur5() -> UR5:
-    """The process-wide UR5 model (built once from the installed example-robot-data, then cached)."""
-    return UR5()
+@lru_cache(maxsize=4)
+def load_ur5(robots_dir: Path | None = None) -> UR5:
+    """The process-wide UR5 model of ``robots_dir`` (default: the installed example-robot-data), built once and
+    cached."""
+    return UR5(robots_dir)

@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from softsig_service.config import ModelLimits, Settings
+from softsig_service.config import ModelLimits, Settings, default_settings
 from softsig_service.errors import FrameNotFound, HandNotFound, InvalidHandModel, ModelTooLarge, UnsafePath
 from softsig_service.hands.assets import check_mjcf_paths, load_urdf_source
 from softsig_service.hands.manifest import HandManifest, PostureClosure, load_manifest
@@ -72,7 +72,7 @@ class HandModel:
 
 def builtin_hands_dir(settings: Settings | None = None) -> Path:
     """The folder of the built-in hands."""
-    return (settings or Settings()).hands_dir
+    return (settings or default_settings()).hands_dir
 
 
 def builtin_hand_names(settings: Settings | None = None) -> list[str]:
@@ -103,7 +103,7 @@ def resolve_hand_path(ref: str, settings: Settings | None = None) -> Path:
 
 def load_hand(ref: str, settings: Settings | None = None) -> HandModel:
     """Load (or fetch from the cache) the hand named ``ref`` or described by the manifest at ``ref``."""
-    settings = settings or Settings()
+    settings = settings or default_settings()
     path = resolve_hand_path(ref, settings)
     return _load_cached(str(path), path.stat().st_mtime_ns, settings.limits)
 

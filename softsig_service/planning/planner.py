@@ -209,7 +209,7 @@ class Planner:
 
     def __init__(self, settings: Settings | None = None, ur5: UR5 | None = None) -> None:
         self.settings = settings
-        self.ur5 = ur5 or load_ur5()
+        self.ur5 = ur5 or load_ur5(settings.robots_dir if settings is not None else None)
         self._worlds: dict[str, CollisionWorld] = {}
         self._lock = threading.Lock()
 

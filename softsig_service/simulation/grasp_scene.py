@@ -30,7 +30,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from softsig_service.config import Settings
+from softsig_service.config import Settings, default_settings
 from softsig_service.errors import InvalidInput, SolverError
 from softsig_service.geometry.transforms import matrix_to_quat
 from softsig_service.hands.closure import simulate_closure
@@ -86,7 +86,7 @@ def _add_object(spec: mujoco.MjSpec, obj: TableObject) -> None:
 
 def compile_with_object(hand: HandModel, obj: TableObject, settings: Settings | None = None) -> HandModel:
     """The hand recompiled with ``obj`` as a free body named :data:`OBJECT_BODY` (not cached)."""
-    limits = (settings or Settings()).limits
+    limits = (settings or default_settings()).limits
     return compile_hand(hand.manifest, hand.folder, limits, edit=lambda spec: _add_object(spec, obj))
 
 

@@ -46,6 +46,7 @@ import hashlib
 import threading
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
+from pathlib import Path
 from typing import NamedTuple
 
 import mujoco
@@ -53,7 +54,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from softsig_service.arm.ur5 import FLANGE_FRAME, JOINT_NAMES, URDF_RELATIVE, find_robots_dir
-from softsig_service.config import Settings
+from softsig_service.config import Settings, default_settings
 from softsig_service.errors import InvalidHandModel
 from softsig_service.geometry.transforms import matrix_to_quat
 from softsig_service.hands.manifest import load_manifest
@@ -231,10 +232,10 @@ class Scene:
 # ----------------------------------------------------------------------------------------------------------
 
 
-def _ur5_spec() -> mujoco.MjSpec:
+def _ur5_spec(robots_dir: Path | None = None) -> mujoco.MjSpec:
     """The UR5 URDF as an ``MjSpec``: collision STL meshes from the installed package, no visuals, fixed
     links kept (``tool0`` is a body), gravity-compensated bodies and one position servo per joint."""
-    robots = find_robots_dir()
+    robots = find_robots_dir(robots_dir)
     urdf_path = robots / URDF_RELATIVE
     root = ET.fromstring(urdf_path.read_text(encoding="utf-8"))
     for tag in ("gazebo", "transmission"):
@@ -301,7 +302,7 @@ def _add_object(spec: mujoco.MjSpec, obj: TableObject) -> None:
 
 
 def _compose(hand_ref: str, obj: TableObject, settings: Settings) -> Scene:
-    spec = _ur5_spec()
+    spec = _ur5_spec(settings.robots_dir)
     spec.modelname = "softsig_validation"
     spec.compiler.degree = False
     hand_spec, hand = _hand_spec(hand_ref, settings)
@@ -419,9 +420,10 @@ def build_scene(hand_ref: str, obj: TableObject, settings: Settings | None = Non
     """The scene for ``hand_ref`` (built-in name or manifest path) and the shape of ``obj`` (its pose is not
     part of the model: place it with :meth:`Scene.make_data`). Compiled once per process and reused for every
     object of the same shape, mass, friction and table height (thread-safe)."""
-    settings = settings or Settings()
+    settings = settings or default_settings()
     path = resolve_hand_path(hand_ref, settings)
-    key = (hand_ref, str(path), path.stat().st_mtime_ns, str(settings.hands_dir), settings.limits, _shape_key(obj))
+    key = (hand_ref, str(path), path.stat().st_mtime_ns, str(settings.hands_dir), str(settings.robots_dir),
+           settings.limits, _shape_key(obj))  # fmt: skip
     with _CACHE_LOCK:
         scene = _CACHE.get(key)
         if scene is None:

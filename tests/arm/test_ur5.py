@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from softsig_service.arm import ur5 as ur5_mod
 from softsig_service.arm.ur5 import HOME_Q, JOINT_NAMES, UR5, find_robots_dir, load_ur5
+from softsig_service.config import Settings, default_settings
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.transforms import make_transform, rot_x, rot_z
 
@@ -53,14 +53,17 @@ def test_model_is_cached_and_has_the_ur5_joints(ur5: UR5) -> None:
     assert ur5.srdf_path.is_file()
 
 
-def test_robots_dir_env_override(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+def test_robots_dir_override_comes_from_the_settings(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     found = find_robots_dir()
     assert (found / "ur_description" / "urdf" / "ur5_robot.urdf").is_file()
-    monkeypatch.setenv(ur5_mod.ROBOTS_DIR_ENV, str(found))
-    assert find_robots_dir() == found.resolve()
-    monkeypatch.setenv(ur5_mod.ROBOTS_DIR_ENV, str(tmp_path))
-    with pytest.raises(FileNotFoundError, match="SOFTSIG_ROBOTS_DIR"):
-        find_robots_dir()
+    assert find_robots_dir(found) == found.resolve()
+    with pytest.raises(FileNotFoundError, match="robots_dir"):
+        find_robots_dir(tmp_path)
+    # the environment reaches the arm only through the settings the entry point builds
+    monkeypatch.setenv("SOFTSIG_ROBOTS_DIR", str(tmp_path))
+    assert find_robots_dir() == found  # library code does not read the environment
+    assert Settings().robots_dir == tmp_path
+    assert default_settings().robots_dir is None
 
 
 def test_fk_at_zero_matches_hands_md(ur5: UR5) -> None:
