@@ -29,7 +29,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from softsig_service.arm.collision import CollisionWorld, HandShape, ObjectShape
+from softsig_service.arm.collision import CollisionWorld
+from softsig_service.arm.shapes import HandShape, ObjectShape
 from softsig_service.arm.ur5 import UR5, IKResult, load_ur5
 from softsig_service.geometry.transforms import apply, make_transform, rot_x, rot_z
 

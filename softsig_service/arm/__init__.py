@@ -1,13 +1,15 @@
-"""The UR5 arm: Pinocchio kinematics with closed-form and numeric IK, and coal collision checks of arm, hand, table and
-object.
-"""
+"""The UR5 arm: Pinocchio kinematics with closed-form and numeric IK, and coal collision checks of arm, hand, table
+and object."""
 
-from softsig_service.arm.collision import (
-    CollisionReport,
-    CollisionWorld,
+from softsig_service.arm.arm_geometry import ArmGeometry, arm_geometry, link_name
+from softsig_service.arm.collision import CollisionWorld
+from softsig_service.arm.collision_report import CollisionReport, check_finite, check_margin, make_report, min_optional
+from softsig_service.arm.shapes import (
     HandShape,
     ObjectShape,
     ShapeSpec,
+    check_shape_size,
+    coal_primitive,
     convex_hull,
     object_geometry,
 )
@@ -15,6 +17,7 @@ from softsig_service.arm.ur5 import UR5, IKResult, URParameters, find_robots_dir
 
 __all__ = [
     "UR5",
+    "ArmGeometry",
     "CollisionReport",
     "CollisionWorld",
     "HandShape",
@@ -22,8 +25,16 @@ __all__ = [
     "ObjectShape",
     "ShapeSpec",
     "URParameters",
+    "arm_geometry",
+    "check_finite",
+    "check_margin",
+    "check_shape_size",
+    "coal_primitive",
     "convex_hull",
     "find_robots_dir",
+    "link_name",
     "load_ur5",
+    "make_report",
+    "min_optional",
     "object_geometry",
 ]

@@ -38,240 +38,40 @@ A :class:`CollisionWorld` holds mutable Pinocchio/coal data: use one per thread.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from functools import lru_cache
-from pathlib import Path
-from typing import Literal, Protocol
+from dataclasses import dataclass
 
 import coal
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
+from softsig_service.arm.arm_geometry import arm_geometry
+from softsig_service.arm.collision_report import (
+    CATEGORY_ORDER,
+    HAND_ATTACHED_LINKS,
+    HAND_PREFIX,
+    OBJECT_NAME,
+    REASON_OF,
+    TABLE_EXCLUDED_LINKS,
+    TABLE_NAME,
+    Category,
+    CollisionReport,
+    check_finite,
+    check_margin,
+    make_report,
+    min_optional,
+)
+from softsig_service.arm.shapes import (
+    HandShape,
+    ShapeSpec,
+    object_geometry,
+)
 from softsig_service.arm.ur5 import UR5
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.transforms import check_transform
 
 FloatArray = NDArray[np.float64]
-
-REASON_TABLE = "collision:table"
-REASON_OBJECT = "collision:object"
-REASON_SELF = "collision:self"
-
-Category = Literal["table", "object", "self"]
-_REASON: dict[str, str] = {"table": REASON_TABLE, "object": REASON_OBJECT, "self": REASON_SELF}
-_CATEGORY_ORDER: tuple[Category, ...] = ("table", "object", "self")
-
-TABLE_NAME = "table"
-OBJECT_NAME = "object"
-HAND_PREFIX = "hand:"
-
-TABLE_EXCLUDED_LINKS = frozenset({"base_link", "shoulder_link"})
-"""Arm links not checked against the table: the base stands on it."""
-HAND_ATTACHED_LINKS = frozenset({"wrist_3_link", "ee_link"})
-"""Arm links not checked against hand shapes: the hand is bolted to their flange."""
-
-HandKind = Literal["box", "capsule", "sphere", "cylinder"]
-ObjectKind = Literal["box", "cylinder", "sphere", "ellipsoid", "mesh"]
-
-_HAND_SIZE_LEN: dict[str, int] = {"box": 3, "capsule": 2, "sphere": 1, "cylinder": 2}
-_OBJECT_SIZE_LEN: dict[str, int] = {"box": 3, "cylinder": 2, "sphere": 1, "ellipsoid": 3, "mesh": 0}
-
-
-# ----------------------------------------------------------------------------------------------------------
-# shapes
-# ----------------------------------------------------------------------------------------------------------
-
-
-def _check_size(kind: str, size: Sequence[float], expected: dict[str, int], field: str) -> tuple[float, ...]:
-    if kind not in expected:
-        raise InvalidInput(f"unknown shape kind {kind!r}", field=f"{field}.kind", value=kind, choices=expected)
-    n = expected[kind]
-    try:
-        vals = tuple(float(v) for v in size)
-    except (TypeError, ValueError) as exc:
-        raise InvalidInput("size must be numbers", field=f"{field}.size", value=size) from exc
-    if len(vals) != n:
-        raise InvalidInput(f"a {kind} needs {n} size values", field=f"{field}.size", value=list(vals))
-    if not all(math.isfinite(v) and v > 0.0 for v in vals):
-        raise InvalidInput("sizes must be finite and > 0 [m]", field=f"{field}.size", value=list(vals))
-    return vals
-
-
-@dataclass(frozen=True, eq=False)
-class HandShape:
-    """A primitive rigidly attached to the hand (= ``tool0``) frame, with MuJoCo's size conventions.
-
-    Attributes:
-        kind: ``"box"``, ``"capsule"``, ``"sphere"`` or ``"cylinder"``.
-        size: [m] box: half-sizes (hx, hy, hz); capsule and cylinder: (radius, half-length), axis along the
-            shape's local z (a capsule's half-length excludes its end caps, as in MuJoCo); sphere: (radius,).
-        pose_in_hand: 4x4 pose of the shape's centre frame in the hand frame (default identity).
-        name: optional label used in collision reports (``"hand:<name>"``; default ``"<kind><index>"``).
-    """
-
-    kind: HandKind
-    size: tuple[float, ...]
-    pose_in_hand: FloatArray = field(default_factory=lambda: np.eye(4))
-    name: str = ""
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "size", _check_size(self.kind, self.size, _HAND_SIZE_LEN, "hand_shape"))
-        T = check_transform(self.pose_in_hand, field="hand_shape.pose_in_hand").copy()
-        T.setflags(write=False)
-        object.__setattr__(self, "pose_in_hand", T)
-
-    def geometry(self) -> coal.CollisionGeometry:
-        """The coal geometry of this shape (in its own centre frame)."""
-        return _coal_primitive(self.kind, self.size)
-
-
-class ShapeSpec(Protocol):
-    """What :meth:`CollisionWorld.set_object` needs of an object shape (MuJoCo size conventions).
-
-    ``kind`` is one of box, cylinder, sphere, ellipsoid, mesh; ``size`` [m] is box half-sizes, cylinder
-    (radius, half-length) with its axis along the shape's z, sphere (radius,), ellipsoid (rx, ry, rz) radii,
-    and empty for a mesh; ``vertices`` ``(N, 3)`` [m] in the shape frame for a mesh (its convex hull is used).
-    """
-
-    @property
-    def kind(self) -> str: ...
-
-    @property
-    def size(self) -> tuple[float, ...]: ...
-
-    @property
-    def vertices(self) -> FloatArray | None: ...
-
-
-@dataclass(frozen=True, eq=False)
-class ObjectShape:
-    """A concrete :class:`ShapeSpec`: an object shape in its own frame (MuJoCo size conventions, [m])."""
-
-    kind: ObjectKind
-    size: tuple[float, ...] = ()
-    vertices: FloatArray | None = None
-
-
-def _coal_primitive(kind: str, size: Sequence[float]) -> coal.CollisionGeometry:
-    """coal geometry from MuJoCo-style sizes (coal takes full box sides and full cylinder/capsule lengths)."""
-    if kind == "box":
-        return coal.Box(2.0 * size[0], 2.0 * size[1], 2.0 * size[2])
-    if kind == "capsule":
-        return coal.Capsule(size[0], 2.0 * size[1])
-    if kind == "cylinder":
-        return coal.Cylinder(size[0], 2.0 * size[1])
-    if kind == "sphere":
-        return coal.Sphere(size[0])
-    if kind == "ellipsoid":
-        return coal.Ellipsoid(size[0], size[1], size[2])
-    raise InvalidInput(f"unknown shape kind {kind!r}", field="kind", value=kind)  # pragma: no cover
-
-
-def convex_hull(points: ArrayLike, field: str = "vertices") -> coal.ConvexBase:
-    """coal convex hull (qhull) of ``(N, 3)`` points [m]; :class:`InvalidInput` if they span no volume."""
-    P = np.asarray(points, dtype=np.float64)
-    if P.ndim != 2 or P.shape[1] != 3 or P.shape[0] < 4:
-        raise InvalidInput("need an (N, 3) array with N >= 4", field=field, value=f"shape {P.shape}")
-    if not np.all(np.isfinite(P)):
-        raise InvalidInput("contains NaN or infinite values", field=field)
-    centred = P - P.mean(axis=0)
-    sv = np.linalg.svd(centred, compute_uv=False)
-    if sv[-1] <= 1e-9 * max(sv[0], 1e-12):
-        raise InvalidInput("points are coplanar: their hull has no volume", field=field)
-    v = coal.StdVec_Vec3s()
-    v.extend(list(P))
-    return coal.Convex.convexHull(v, False, "")
-
-
-def object_geometry(shape: ShapeSpec, field: str = "object") -> coal.CollisionGeometry:
-    """coal geometry of an object shape (see :class:`ShapeSpec`)."""
-    kind = shape.kind
-    if kind not in _OBJECT_SIZE_LEN:
-        raise InvalidInput(f"unknown object kind {kind!r}", field=f"{field}.kind", value=kind, choices=_OBJECT_SIZE_LEN)
-    if kind == "mesh":
-        if shape.vertices is None:
-            raise InvalidInput("a mesh needs vertices", field=f"{field}.vertices")
-        return convex_hull(shape.vertices, field=f"{field}.vertices")
-    return _coal_primitive(kind, _check_size(kind, shape.size, _OBJECT_SIZE_LEN, field))
-
-
-# ----------------------------------------------------------------------------------------------------------
-# report
-# ----------------------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class CollisionReport:
-    """Result of a collision check.
-
-    Attributes:
-        in_collision: whether any checked pair is closer than the margin.
-        pairs: colliding pairs as (name, name): arm links by link name (``"wrist_2_link"``), hand shapes as
-            ``"hand:<name>"``, ``"table"``, ``"object"``.
-        reasons: distinct reasons, in the order ``collision:table``, ``collision:object``, ``collision:self``.
-        min_distance_table: smallest distance [m] of the checked links/hand shapes to the table (negative:
-            penetration depth), or None when not computed.
-        min_distance_object: same against the object (None without an object or when not computed).
-        min_distance_hand_table: smallest distance [m] of the hand shapes alone to the table (None: no hand
-            shape or not computed); the arm's upper arm stays ~0.03 m above the table, so
-            ``min_distance_table`` rarely says much about the hand.
-        min_distance_hand_object: smallest distance [m] of the hand shapes to the object (None when not
-            computed, e.g. with ``ignore_hand_object``).
-        waypoint: for a path check, the index of the first colliding configuration (None if free).
-        checked: number of configurations checked.
-    """
-
-    in_collision: bool
-    pairs: list[tuple[str, str]]
-    reasons: list[str]
-    min_distance_table: float | None = None
-    min_distance_object: float | None = None
-    min_distance_hand_table: float | None = None
-    min_distance_hand_object: float | None = None
-    waypoint: int | None = None
-    checked: int = 1
-
-    @property
-    def reason(self) -> str | None:
-        """The first reason (table before object before self), or None when free."""
-        return self.reasons[0] if self.reasons else None
-
-
-# ----------------------------------------------------------------------------------------------------------
-# the world
-# ----------------------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class _ArmGeometry:
-    model: pin.GeometryModel  # arm links with convex hulls, no pairs
-    names: tuple[str, ...]  # link name of each geometry object
-    self_pairs: tuple[tuple[int, int], ...]  # SRDF-filtered
-
-
-def _link_name(geom_name: str) -> str:
-    """``"wrist_2_link_0"`` -> ``"wrist_2_link"`` (Pinocchio suffixes geometry names with an index)."""
-    head, sep, tail = geom_name.rpartition("_")
-    return head if sep and tail.isdigit() else geom_name
-
-
-@lru_cache(maxsize=4)
-def _arm_geometry(urdf: Path, srdf: Path, package_dir: Path) -> _ArmGeometry:
-    """Arm collision geometry (convex hulls of the link meshes) and its SRDF-filtered pairs, built once."""
-    model = pin.buildModelFromUrdf(str(urdf))
-    gm = pin.buildGeomFromUrdf(model, str(urdf), pin.GeometryType.COLLISION, package_dirs=[str(package_dir)])
-    for go in gm.geometryObjects:
-        geo = go.geometry
-        if isinstance(geo, coal.BVHModelBase):
-            go.geometry = convex_hull(np.array(geo.vertices()), field=go.name)
-    gm.addAllCollisionPairs()
-    pin.removeCollisionPairs(model, gm, str(srdf))
-    pairs = tuple((int(cp.first), int(cp.second)) for cp in gm.collisionPairs)
-    names = tuple(_link_name(go.name) for go in gm.geometryObjects)
-    return _ArmGeometry(gm, names, pairs)
 
 
 @dataclass(frozen=True)
@@ -310,11 +110,11 @@ class CollisionWorld:
         for i, hs in enumerate(self.hand_shapes):
             if not isinstance(hs, HandShape):
                 raise InvalidInput("expected a HandShape", field=f"hand_shapes[{i}]", value=repr(hs))
-        self.table_height = _finite(table_height, "table_height")
-        self.margin = _check_margin(margin)
-        self.table_margin = _check_margin(table_margin, "table_margin")
-        self.self_margin = _check_margin(self_margin, "self_margin")
-        self._arm = _arm_geometry(ur5.urdf_path, ur5.srdf_path, ur5.package_dir)
+        self.table_height = check_finite(table_height, "table_height")
+        self.margin = check_margin(margin)
+        self.table_margin = check_margin(table_margin, "table_margin")
+        self.self_margin = check_margin(self_margin, "self_margin")
+        self._arm = arm_geometry(ur5.urdf_path, ur5.srdf_path, ur5.package_dir)
         self._model = ur5.model
         self._data = ur5.model.createData()
         self._object: tuple[coal.CollisionGeometry, FloatArray] | None = None
@@ -429,9 +229,9 @@ class CollisionWorld:
 
     def _margins(self, margin: float | None, table_margin: float | None, self_margin: float | None) -> dict[str, float]:
         return {
-            "object": self.margin if margin is None else _check_margin(margin),
-            "table": self.table_margin if table_margin is None else _check_margin(table_margin, "table_margin"),
-            "self": self.self_margin if self_margin is None else _check_margin(self_margin, "self_margin"),
+            "object": self.margin if margin is None else check_margin(margin),
+            "table": self.table_margin if table_margin is None else check_margin(table_margin, "table_margin"),
+            "self": self.self_margin if self_margin is None else check_margin(self_margin, "self_margin"),
         }
 
     def _apply_margins(self, margins: dict[str, float]) -> None:
@@ -492,11 +292,11 @@ class CollisionWorld:
             if distances and p.category != "self":
                 d = float(pin.computeDistance(gm, gd, p.index).min_distance)
                 slot = 0 if p.category == "table" else 1
-                dmin[slot] = _min_opt(dmin[slot], d)
+                dmin[slot] = min_optional(dmin[slot], d)
                 if p.hand:
-                    dmin[slot + 2] = _min_opt(dmin[slot + 2], d)
-        reasons = [_REASON[c] for c in _CATEGORY_ORDER if c in cats]
-        return _report(bool(hits), hits, reasons, dmin)
+                    dmin[slot + 2] = min_optional(dmin[slot + 2], d)
+        reasons = [REASON_OF[c] for c in CATEGORY_ORDER if c in cats]
+        return make_report(bool(hits), hits, reasons, dmin)
 
     def check_waypoints(
         self,
@@ -541,15 +341,15 @@ class CollisionWorld:
                     r.min_distance_hand_object,
                 )
             ):
-                dmin[j] = _min_opt(dmin[j], d)
+                dmin[j] = min_optional(dmin[j], d)
             if r.in_collision:
                 first = i if first is None else first
                 hits.extend(h for h in r.pairs if h not in hits)
                 reasons.extend(x for x in r.reasons if x not in reasons)
                 if stop_at_first:
                     break
-        reasons.sort(key=lambda x: [_REASON[c] for c in _CATEGORY_ORDER].index(x))
-        return _report(first is not None, hits, reasons, dmin, waypoint=first, checked=checked)
+        reasons.sort(key=lambda x: [REASON_OF[c] for c in CATEGORY_ORDER].index(x))
+        return make_report(first is not None, hits, reasons, dmin, waypoint=first, checked=checked)
 
     def check_path(
         self,
@@ -586,67 +386,3 @@ class CollisionWorld:
             distances=distances,
             stop_at_first=stop_at_first,
         )
-
-
-def _report(
-    in_collision: bool,
-    hits: list[tuple[str, str]],
-    reasons: list[str],
-    dmin: Sequence[float | None],
-    waypoint: int | None = None,
-    checked: int = 1,
-) -> CollisionReport:
-    return CollisionReport(
-        in_collision,
-        hits,
-        reasons,
-        min_distance_table=dmin[0],
-        min_distance_object=dmin[1],
-        min_distance_hand_table=dmin[2],
-        min_distance_hand_object=dmin[3],
-        waypoint=waypoint,
-        checked=checked,
-    )
-
-
-def _min_opt(a: float | None, b: float | None) -> float | None:
-    if a is None:
-        return b
-    if b is None:
-        return a
-    return min(a, b)
-
-
-def _finite(v: float, field: str) -> float:
-    try:
-        f = float(v)
-    except (TypeError, ValueError) as exc:
-        raise InvalidInput("expected a number", field=field, value=v) from exc
-    if not math.isfinite(f):
-        raise InvalidInput("NaN or infinite value", field=field, value=v)
-    return f
-
-
-def _check_margin(m: float, field: str = "margin") -> float:
-    f = _finite(m, field)
-    if f < 0.0:
-        raise InvalidInput("a margin must be >= 0 [m]", field=field, value=m)
-    return f
-
-
-__all__ = [
-    "HAND_ATTACHED_LINKS",
-    "REASON_OBJECT",
-    "REASON_SELF",
-    "REASON_TABLE",
-    "TABLE_EXCLUDED_LINKS",
-    "CollisionReport",
-    "CollisionWorld",
-    "HandKind",
-    "HandShape",
-    "ObjectKind",
-    "ObjectShape",
-    "ShapeSpec",
-    "convex_hull",
-    "object_geometry",
-]

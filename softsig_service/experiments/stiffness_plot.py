@@ -26,7 +26,7 @@ from mpl_toolkits.mplot3d.axes3d import Axes3D
 from numpy.typing import NDArray
 
 from softsig_service.errors import InvalidInput
-from softsig_service.signatures.stiffness import StiffnessSignature
+from softsig_service.signatures.stiffness_types import StiffnessSignature
 
 PLOT_SUFFIXES: tuple[str, ...] = (".png", ".pdf", ".svg")
 

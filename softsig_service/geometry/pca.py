@@ -18,30 +18,34 @@ from numpy.typing import ArrayLike, NDArray
 
 from softsig_service.errors import InvalidInput
 
-AXIS_SIGN_TOL = 1e-9
-"""A unit vector's component of magnitude <= this counts as zero in :func:`orient_axes` [dimensionless]."""
+AXIS_TIE_RTOL = 1e-6
+"""Components whose magnitudes are within this fraction of the largest one tie for the sign in
+:func:`orient_axes` (the first of them decides) [dimensionless]; far above round-off, so that a rotation by
+1e-7 rad cannot flip an axis that lies on a tie."""
 
 MomentOrigin = Literal["zero", "mean"]
 MOMENT_ORIGINS: tuple[MomentOrigin, ...] = ("zero", "mean")
 
 
-def orient_axes(vectors: ArrayLike, *, tol: float = AXIS_SIGN_TOL) -> NDArray[np.float64]:
+def orient_axes(vectors: ArrayLike, *, tie_rtol: float = AXIS_TIE_RTOL) -> NDArray[np.float64]:
     """Flip each vector (a row of ``vectors``, shape (..., d)) so that its sign is canonical.
 
-    The rule (DESIGN §4): the first component whose magnitude exceeds ``tol`` is made positive, i.e. a
-    non-negative component on +x; if the vector is perpendicular to x (|v_x| <= tol), a positive component on
-    +y; if perpendicular to x and y, a positive component on +z. ``tol`` is absolute, so pass unit vectors.
-    A zero vector is returned unchanged. Returns a new array; lengths are preserved.
+    The rule (docs/design.md, "Axes and their sign"): the component of largest magnitude is made positive;
+    where several components are within ``tie_rtol`` (relative) of the largest, the first of them decides.
+    Unlike "the first non-zero component is positive", this does not flip under a tiny rotation of an axis
+    that lies in a coordinate plane (every built-in hand's CS has x ~ 0): the sign changes only where two
+    components are equal in magnitude, and a rotation smaller than ``tie_rtol`` rad cannot cross that
+    boundary. A zero vector is returned unchanged. Returns a new array; lengths are preserved.
     """
     v = np.array(vectors, dtype=np.float64, copy=True)
     if v.ndim == 0:
         raise InvalidInput("vectors must have at least one dimension", field="vectors", value=v.shape)
-    significant = np.abs(v) > tol
-    first = np.argmax(significant, axis=-1)
+    mag = np.abs(v)
+    largest = np.max(mag, axis=-1, keepdims=True)
+    candidates = (mag >= largest * (1.0 - tie_rtol)) & (largest > 0.0)
+    first = np.argmax(candidates, axis=-1)
     pivot = np.take_along_axis(v, first[..., None], axis=-1)[..., 0]
-    flip = pivot < 0.0
-    flip &= np.any(significant, axis=-1)
-    v[flip] *= -1.0
+    v[pivot < 0.0] *= -1.0
     return v + 0.0  # turns the -0.0 left by a flip into 0.0
 
 

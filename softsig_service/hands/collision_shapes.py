@@ -12,7 +12,7 @@ import copy
 import mujoco
 import numpy as np
 
-from softsig_service.arm.collision import HandShape
+from softsig_service.arm.shapes import HandShape
 from softsig_service.hands.closure import prepare_data, to_hand_frame
 from softsig_service.hands.model import HandModel
 

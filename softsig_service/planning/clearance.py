@@ -15,7 +15,7 @@ import coal
 import numpy as np
 from numpy.typing import NDArray
 
-from softsig_service.arm.collision import HandShape, object_geometry
+from softsig_service.arm.shapes import HandShape, object_geometry
 from softsig_service.objects import TableObject
 
 TABLE_HALF_THICKNESS = 0.05

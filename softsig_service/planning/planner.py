@@ -33,7 +33,8 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from softsig_service.arm.collision import CollisionWorld, HandShape
+from softsig_service.arm.collision import CollisionWorld
+from softsig_service.arm.shapes import HandShape
 from softsig_service.arm.ur5 import HOME_Q, UR5, load_ur5
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput

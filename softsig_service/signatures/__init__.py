@@ -1,6 +1,5 @@
-"""The signatures as pure math (numpy, no MuJoCo): the closure signature by three methods, the grasp-stiffness algebra,
-marker files.
-"""
+"""The signatures as pure math (numpy, no MuJoCo): the closure signature by three methods, the grasp-stiffness
+algebra, marker files."""
 
 from softsig_service.signatures.closure import (
     ClosureSignature,
@@ -14,12 +13,20 @@ from softsig_service.signatures.closure import (
     pca_closure_signature,
 )
 from softsig_service.signatures.markers import load_markers, parse_markers_csv, parse_markers_json
+from softsig_service.signatures.matrix_checks import (
+    checked_matrix,
+    checked_positive,
+    checked_vector,
+    float_list,
+    is_psd,
+    psd_clip,
+    psd_pinv,
+    rows_array,
+    split_infinite,
+    square_matrix,
+    sym,
+)
 from softsig_service.signatures.stiffness import (
-    BreakForce,
-    ContactRecord,
-    PrincipalStiffness,
-    StiffnessSignature,
-    StiffnessTerms,
     constraint_basis,
     contact_space_stiffness,
     contact_stiffness_matrix,
@@ -27,12 +34,17 @@ from softsig_service.signatures.stiffness import (
     grasp_stiffness,
     grasp_stiffness_terms,
     hand_quadratic,
-    is_psd,
     principal_stiffness,
     principal_stiffnesses,
-    psd_pinv,
     skew,
     stiffness_ellipsoid,
+)
+from softsig_service.signatures.stiffness_types import (
+    BreakForce,
+    ContactRecord,
+    PrincipalStiffness,
+    StiffnessSignature,
+    StiffnessTerms,
 )
 
 __all__ = [
@@ -44,6 +56,9 @@ __all__ = [
     "StiffnessSignature",
     "StiffnessTerms",
     "check_criterion",
+    "checked_matrix",
+    "checked_positive",
+    "checked_vector",
     "compute_closure_signature",
     "constraint_basis",
     "contact_space_stiffness",
@@ -51,6 +66,7 @@ __all__ = [
     "distinctness_ratio",
     "ellipsoid_axis_series",
     "ellipsoid_closure_signature",
+    "float_list",
     "grasp_matrix",
     "grasp_stiffness",
     "grasp_stiffness_terms",
@@ -63,7 +79,12 @@ __all__ = [
     "pca_closure_signature",
     "principal_stiffness",
     "principal_stiffnesses",
+    "psd_clip",
     "psd_pinv",
+    "rows_array",
     "skew",
+    "split_infinite",
+    "square_matrix",
     "stiffness_ellipsoid",
+    "sym",
 ]

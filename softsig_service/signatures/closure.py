@@ -15,8 +15,15 @@ Three methods, one result type:
     along r_k;
   - ``"relative"`` (an option, never the default): ``delta_k = (a_k(T) - a_k(0)) / a_k(0)`` (dimensionless).
     It is large along a thin axis of E_0 whatever the hand does: a nearly flat open hand tends to get its
-    normal as the CS, and a coplanar one (lifted, see ``extras["lifted_epsilon"]``) a delta of order
-    1 / lift_epsilon along it.
+    normal as the CS.
+
+  An axis of E_0 that exists only because coplanar or collinear open points were lifted (``n_lifted`` of
+  :class:`~softsig_service.geometry.ellipsoid.Ellipsoid`; its half-width is the lift, of order
+  ``lift_epsilon``) is never elected: the CS is the real axis of the largest |delta_k|, the lifted axes are
+  listed last and named in ``extras["lifted_axes"]`` (their deltas are still reported). When two semi-axes of
+  E_0 are within :data:`NEARLY_EQUAL_RTOL` of each other, their directions are ill-defined (any rotation in
+  their plane fits as well): ``extras["ill_defined_axes"]`` names the pairs (indices into ``axes``) and
+  ``extras["warnings"]`` says so.
 
   The CS is the r_k with the largest |delta_k|, anchored at c_0, magnitude delta_k*. Both changes are reported
   whichever criterion elects the CS (``extras["absolute_change"]`` [m], ``extras["relative_change"]``), and so
@@ -39,8 +46,8 @@ Conventions common to the three:
 * ``axes`` is a (3, 3) array whose **rows** are unit vectors, ordered by |deformation| descending (ties keep
   the method's own order), so ``axes[0]`` is the CS ``axis``, ``deformation[0]`` its value and
   ``magnitude == deformation[0]``. The rows are not necessarily a right-handed triad.
-* Sign rule (DESIGN §4), applied to every row: a non-negative component on hand +x; if the vector is
-  perpendicular to x (|v_x| <= 1e-9), a positive component on +y; if perpendicular to x and y, on +z.
+* Sign rule (:func:`~softsig_service.geometry.pca.orient_axes`), applied to every row: the component of
+  largest magnitude is positive (the first of near-equal ones decides).
 * ``distinctness = |deformation[0]| / |deformation[1]|``; when the second is 0 (or the ratio exceeds it) it
   is :data:`DISTINCTNESS_CAP` (1e6); when all deformations are 0 it is 1.0. ``ambiguous`` means
   ``distinctness < 1.1``. "0" means at or below the method's numerical resolution, reported as
@@ -54,6 +61,7 @@ Conventions common to the three:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -70,6 +78,7 @@ from softsig_service.geometry.ellipsoid import (
 )
 from softsig_service.geometry.pca import MomentOrigin, orient_axes, principal_components
 from softsig_service.hands.trajectory import MIN_POINTS, ClosureTrajectory
+from softsig_service.signatures.matrix_checks import float_list
 
 Method = Literal["ellipsoid", "pca", "mesh"]
 METHODS: tuple[Method, ...] = ("ellipsoid", "pca", "mesh")
@@ -93,6 +102,8 @@ MESH_RESOLUTION = 1e-9
 """Mesh ln-stretches with |ln lambda| <= this are round-off of the fit and count as 0 in distinctness."""
 DEGENERATE_RTOL = 1e-9
 """Mesh method: smallest / largest singular value of the centred initial points must exceed this."""
+NEARLY_EQUAL_RTOL = 1e-3
+"""Two semi-axes of E_0 within this relative difference make their directions ill-defined (ellipsoid method)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,11 +162,11 @@ class ClosureSignature:
         out: dict[str, Any] = {
             "method": self.method,
             "frame_id": self.frame_id,
-            "axis": _floats(self.axis),
-            "anchor": _floats(self.anchor),
+            "axis": float_list(self.axis),
+            "anchor": float_list(self.anchor),
             "magnitude": float(self.magnitude),
-            "deformation": _floats(self.deformation),
-            "axes": [_floats(row) for row in self.axes],
+            "deformation": float_list(self.deformation),
+            "axes": [float_list(row) for row in self.axes],
             "distinctness": float(self.distinctness),
             "ambiguous": self.ambiguous,
             "params": dict(self.params),
@@ -267,6 +278,11 @@ def ellipsoid_closure_signature(
         delta, unit = relative, "1"
         resolution = ELLIPSOID_RESOLUTION_FACTOR * tol
     drift = r @ (e_t.center - e0.center)
+    eligible = np.arange(3) < 3 - e0.n_lifted  # E_0's lifted axes are its smallest, listed last
+    close_pairs = [
+        (i, j) for i in range(3) for j in range(i + 1, 3)
+        if eligible[i] and eligible[j] and a0[i] - a0[j] <= NEARLY_EQUAL_RTOL * a0[i]
+    ]  # fmt: skip
     solver = {
         name: {"iterations": e.iterations, "converged": e.converged, "gap": e.gap}
         for name, e in (("initial", e0), ("final", e_t))
@@ -294,6 +310,8 @@ def ellipsoid_closure_signature(
         },
         initial_ellipsoid=e0,
         final_ellipsoid=e_t,
+        eligible=eligible,
+        close_pairs=close_pairs,
     )
 
 
@@ -397,8 +415,8 @@ def mesh_closure_signature(surface: ArrayLike, *, source: MeshSource = "surface"
             "fit_residual_max": float(resid.max()),
             "det_F": float(np.linalg.det(f)),
             "rotation_angle": math.acos(cos_angle),
-            "affine_matrix": [_floats(row) for row in f],
-            "affine_offset": _floats(b),
+            "affine_matrix": [float_list(row) for row in f],
+            "affine_offset": float_list(b),
             "n_frames": int(s.shape[0]),
             "n_points": int(s.shape[1]),
         },
@@ -432,9 +450,14 @@ def _assemble(
     resolution: float,
     initial_ellipsoid: Ellipsoid | None = None,
     final_ellipsoid: Ellipsoid | None = None,
+    eligible: NDArray[np.bool_] | None = None,
+    close_pairs: Sequence[tuple[int, int]] = (),
 ) -> ClosureSignature:
-    """Order the axes by |deformation| descending, apply the sign rule and build the signature."""
-    order = np.argsort(-np.abs(deformation), kind="stable")
+    """Order the axes by |deformation| descending (axes not ``eligible`` for election after the others), apply
+    the sign rule and build the signature. ``close_pairs`` (indices into ``directions``) are reported as
+    ill-defined, with the indices they get in the ordered ``axes``."""
+    ok = np.ones(len(deformation), dtype=bool) if eligible is None else np.asarray(eligible, dtype=bool)
+    order = np.lexsort((-np.abs(deformation), ~ok))  # eligible first, then |deformation| descending
     axes = orient_axes(directions[order])
     deformation = np.asarray(deformation[order], dtype=np.float64)
     # per-axis quantities that change sign with the axis (the centre drift) follow the flip
@@ -443,7 +466,18 @@ def _assemble(
     all_extras["resolution"] = float(resolution)
     for key, values in per_axis.items():
         vals = values[order] * flips if key == "centre_drift" else values[order]
-        all_extras[key] = _floats(vals)
+        all_extras[key] = float_list(vals)
+    rank = {int(k): i for i, k in enumerate(order)}
+    warnings: list[str] = []
+    if not ok.all():
+        all_extras["lifted_axes"] = sorted(rank[int(k)] for k in np.flatnonzero(~ok))
+        warnings.append("the open points are coplanar or collinear: axes that exist only by lifting are not elected")
+    if close_pairs:
+        all_extras["ill_defined_axes"] = [sorted((rank[i], rank[j])) for i, j in close_pairs]
+        warnings.append("two semi-axes of the open hand's ellipsoid are nearly equal: their directions are ill-defined")
+    if warnings:
+        all_extras["warnings"] = warnings
+    distinct = deformation[: max(int(ok.sum()), 2)] if ok.sum() >= 2 else np.append(deformation[:1], 0.0)
     return ClosureSignature(
         method=method,
         params=params,
@@ -452,7 +486,7 @@ def _assemble(
         magnitude=float(deformation[0]),
         deformation=deformation,
         axes=axes,
-        distinctness=distinctness_ratio(deformation, resolution),
+        distinctness=distinctness_ratio(distinct, resolution),
         initial_ellipsoid=initial_ellipsoid,
         final_ellipsoid=final_ellipsoid,
         extras=all_extras,
@@ -482,7 +516,3 @@ def _check_positions(positions: ArrayLike, field_name: str, *, min_points: int) 
             value=[float(v) if math.isfinite(v) else None for v in p[t, i]],
         )
     return p
-
-
-def _floats(values: ArrayLike) -> list[float]:
-    return [float(v) for v in np.asarray(values, dtype=np.float64).ravel()]

@@ -39,14 +39,12 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from softsig_service.signatures.stiffness import (
+from softsig_service.signatures.stiffness import contact_stiffness_matrix, grasp_matrix, grasp_stiffness_terms
+from softsig_service.signatures.stiffness_types import (
     DEFAULT_CONTACT_STIFFNESS,
     ContactRecord,
     StiffnessTerms,
     Transmission,
-    contact_stiffness_matrix,
-    grasp_matrix,
-    grasp_stiffness_terms,
 )
 from softsig_service.simulation.grasp_contacts import contact_forces
 from softsig_service.simulation.grasp_state import (

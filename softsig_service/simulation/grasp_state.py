@@ -17,9 +17,7 @@ from softsig_service.errors import InvalidInput
 from softsig_service.hands.manifest import PostureClosure
 from softsig_service.hands.model import HandModel
 from softsig_service.objects import TableObject
-from softsig_service.signatures.stiffness import (
-    Transmission,
-)
+from softsig_service.signatures.stiffness_types import Transmission
 
 FloatArray = NDArray[np.float64]
 

@@ -53,9 +53,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from softsig_service.errors import InvalidInput, SolverError
-from softsig_service.signatures.stiffness import (
-    BreakForce,
-)
+from softsig_service.signatures.stiffness_types import BreakForce
 from softsig_service.simulation.grasp_state import Grasp
 
 FloatArray = NDArray[np.float64]

@@ -15,12 +15,12 @@ from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
 from softsig_service.hands.model import HandModel
 from softsig_service.objects import TableObject
-from softsig_service.signatures.stiffness import (
+from softsig_service.signatures.stiffness import principal_stiffnesses
+from softsig_service.signatures.stiffness_types import (
     DEFAULT_CONTACT_STIFFNESS,
     TRANSMISSIONS,
     StiffnessSignature,
     Transmission,
-    principal_stiffnesses,
 )
 from softsig_service.simulation.grasp import grasp_object
 from softsig_service.simulation.grasp_matrices import (

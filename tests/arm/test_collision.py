@@ -7,16 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from softsig_service.arm.collision import (
-    REASON_OBJECT,
-    REASON_SELF,
-    REASON_TABLE,
-    CollisionWorld,
-    HandKind,
-    HandShape,
-    ObjectKind,
-    ObjectShape,
-)
+from softsig_service.arm.collision import CollisionWorld
+from softsig_service.arm.collision_report import REASON_OBJECT, REASON_SELF, REASON_TABLE
+from softsig_service.arm.shapes import HandKind, HandShape, ObjectKind, ObjectShape
 from softsig_service.arm.ur5 import UR5, load_ur5
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.transforms import apply, make_transform, rot_x, rot_y, rot_z
@@ -279,7 +272,8 @@ def test_bad_shapes_are_rejected(ur5: UR5) -> None:
 
 def test_moving_the_same_object_updates_its_pose() -> None:
     """set_object with an unchanged shape only moves it; the checks follow the new pose."""
-    from softsig_service.arm.collision import CollisionWorld, HandShape, ObjectShape
+    from softsig_service.arm.collision import CollisionWorld
+    from softsig_service.arm.shapes import HandShape, ObjectShape
     from softsig_service.arm.ur5 import HOME_Q, load_ur5
 
     ur5 = load_ur5()

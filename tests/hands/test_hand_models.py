@@ -3,16 +3,19 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 
 import mujoco
 import numpy as np
 import pytest
 
 from softsig_service.config import Settings
+from softsig_service.geometry.transforms import axis_angle_to_matrix
 from softsig_service.hands.closure import prepare_data, run_closure, simulate_closure
 from softsig_service.hands.manifest import load_manifest
 from softsig_service.hands.model import HandModel, builtin_hand_names, compile_hand, load_hand
 from softsig_service.hands.summary import fingertip_spread
+from softsig_service.signatures.closure import compute_closure_signature
 
 BUILTIN_HANDS = builtin_hand_names()
 EXPECTED_HANDS = {"pisa_iit_softhand", "sdm_hand", "rbo_hand2", "parallel_gripper"}
@@ -164,3 +167,18 @@ def test_blocked_finger_keeps_wrapping_and_others_close_as_in_free_space(name: s
                 assert blocked[joint] * np.sign(angle) >= abs(angle) - 0.01, joint
             else:
                 assert blocked[joint] == pytest.approx(angle, abs=0.08), joint
+
+
+@pytest.mark.parametrize("name", BUILTIN_HANDS)
+def test_closure_signature_axis_keeps_its_sign_under_a_tiny_rotation(name: str, settings: Settings) -> None:
+    """Every built-in hand's CS axes lie near a coordinate plane (x ~ 0); rotating the closure by 1e-7 rad must
+    not flip them (the rotated axis is the rotated original, sign included)."""
+    traj = simulate_closure(load_hand(name, settings), surface_points=0)
+    for method in ("ellipsoid", "pca"):
+        cs = compute_closure_signature(traj, method)  # type: ignore[arg-type]
+        for axis in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (0.6, 0.0, 0.8)):
+            for angle in (1e-7, -1e-7):
+                R = axis_angle_to_matrix(axis, angle)
+                turned = dataclasses.replace(traj, positions=traj.positions @ R.T)
+                cs_r = compute_closure_signature(turned, method)  # type: ignore[arg-type]
+                assert float(cs_r.axis @ (R @ cs.axis)) > 1.0 - 1e-6, (method, axis, angle, cs.axis, cs_r.axis)

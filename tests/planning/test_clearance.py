@@ -9,7 +9,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from softsig_service.arm.collision import object_geometry
+from softsig_service.arm.shapes import object_geometry
 from softsig_service.objects import builtin_object
 from softsig_service.planning.clearance import TABLE_HALF_THICKNESS, HandClearance
 from softsig_service.planning.planner import planning_model

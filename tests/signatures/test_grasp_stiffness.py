@@ -12,7 +12,8 @@ from softsig_service.errors import InvalidInput
 from softsig_service.experiments.stiffness_plot import plot_stiffness_signature
 from softsig_service.hands.closure import prepare_data
 from softsig_service.hands.model import builtin_hand_names, load_hand
-from softsig_service.signatures.stiffness import StiffnessSignature, is_psd
+from softsig_service.signatures.matrix_checks import is_psd
+from softsig_service.signatures.stiffness_types import StiffnessSignature
 from softsig_service.simulation.grasp import grasp_object
 from softsig_service.simulation.grasp_matrices import actuator_synergies, grasp_matrices, hand_object_contacts
 from softsig_service.simulation.grasp_state import Grasp
