@@ -7,7 +7,7 @@ Run ``python scripts/generate_softhand.py`` after changing a number; the MJCF is
 Frames: the published **palm frame** (right hand: +x out of the palm face, the side the fingers close toward;
 +y toward the thumb and index; +z along the fingers) is body ``palm``. The hand frame (body ``mount``, the robot
 flange; +z out of the palm, +x across the palm from the thumb side to the little finger, fingers along -y) is
-softsig's (docs: DESIGN §3). Lengths in the tables are millimetres, written to the MJCF in metres.
+softsig's (docs: docs/design.md §3). Lengths in the tables are millimetres, written to the MJCF in metres.
 """
 
 from __future__ import annotations

@@ -4,9 +4,9 @@ Request bodies are strict: unknown fields, NaN and infinities are rejected (``ex
 ``allow_inf_nan=False``) with a 422 problem naming the field. Response bodies allow extra keys, so that a field
 added to a result type reaches clients without a schema change.
 
-Units and frames (DESIGN §3): SI units (m, rad, s, kg, N); the world frame is the UR5 ``base_link`` (z up); poses
-are ``{"frame_id", "position": {x, y, z}, "orientation": {x, y, z, w}}`` (geometry_msgs order); signatures are in
-the hand frame (origin at the flange, +z the approach, +x across the palm).
+Units and frames (docs/design.md §3): SI units (m, rad, s, kg, N); the world frame is the UR5 ``base_link`` (z
+up); poses are ``{"frame_id", "position": {x, y, z}, "orientation": {x, y, z, w}}`` (geometry_msgs order); signatures
+are in the hand frame (origin at the flange, +z the approach, +x across the palm).
 
 This module imports nothing heavy (no MuJoCo, no NumPy at import), so the client can use it.
 """
@@ -103,7 +103,8 @@ class MeshSpec(_ObjectBase):
 
 
 class BuiltinObjectSpec(Strict):
-    """One of the objects of DESIGN §7 (box, apple, cylinder), optionally with another mass, friction or pose."""
+    """One of the objects of docs/design.md §7 (box, apple, cylinder), optionally with another mass, friction or
+    pose."""
 
     kind: Literal["builtin"]
     name: Literal["box", "apple", "cylinder"]
@@ -231,7 +232,7 @@ CRITERION_DESCRIPTION = (
 
 
 class ClosureSignatureIn(Strict):
-    """Compute the closure signature from a simulated free closure of the hand (DESIGN §4)."""
+    """Compute the closure signature from a simulated free closure of the hand (docs/design.md §4)."""
 
     kind: Literal["closure"]
     method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid"
@@ -239,7 +240,8 @@ class ClosureSignatureIn(Strict):
 
 
 class StiffnessSignatureIn(Strict):
-    """Compute the stiffness signature: grasp ``object`` in MuJoCo, 6x6 stiffness and break forces (DESIGN §5)."""
+    """Compute the stiffness signature: grasp ``object`` in MuJoCo, 6x6 stiffness and break forces
+    (docs/design.md §5)."""
 
     kind: Literal["stiffness"]
     object: ObjectSpec
@@ -286,7 +288,7 @@ class SignatureList(Out):
 
 
 class PlanIn(Strict):
-    """A top-grasp request (DESIGN §6): hand, object on the table, strategy S (bounding box) or C (closure
+    """A top-grasp request (docs/design.md §6): hand, object on the table, strategy S (bounding box) or C (closure
     signature), the UR5's current joints ``current_q`` [rad] (default: home)."""
 
     hand: HandName
@@ -298,7 +300,7 @@ class PlanIn(Strict):
     margin: float = Field(0.005, ge=0.0, le=0.05, description="clearance kept from table and object [m]")
     cs_method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid"
     cs_criterion: Literal["absolute", "relative"] = Field(
-        "absolute", description="ellipsoid CS criterion: absolute [m] (DESIGN §4) or relative half-width change"
+        "absolute", description="ellipsoid CS criterion: absolute [m] (docs/design.md §4) or relative half-width change"
     )
     placement: Literal["open_centre", "grasp_centre", "previous"] = Field(
         "open_centre",
@@ -375,8 +377,9 @@ class PlanList(Out):
 
 
 class ValidationIn(Strict):
-    """Validate a plan in MuJoCo (DESIGN §7): plan the grasp of ``object`` with ``strategy``, then run ``trials``
-    rollouts with the simulated object perturbed by yaw ~ N(0, sigma_r^2) [rad] and x, y ~ N(0, sigma_t^2) [m]."""
+    """Validate a plan in MuJoCo (docs/design.md §7): plan the grasp of ``object`` with ``strategy``, then run
+    ``trials`` rollouts with the simulated object perturbed by yaw ~ N(0, sigma_r^2) [rad] and x, y ~ N(0, sigma_t^2)
+    [m]."""
 
     hand: HandName = "pisa_iit_softhand"
     object: ObjectSpec
@@ -389,7 +392,7 @@ class ValidationIn(Strict):
 
 
 class ExperimentIn(Strict):
-    """Run the reference experiment (DESIGN §7, the paper's Table I): conditions x objects x strategies x
+    """Run the reference experiment (docs/design.md §7, the paper's Table I): conditions x objects x strategies x
     ``trials`` per cell."""
 
     name: Literal["table1"] = "table1"

@@ -1,7 +1,7 @@
 """Collision world of the UR5, the mounted hand, the table and one object (coal, through Pinocchio).
 
 Frames and units: the world frame is the UR5 ``base_link`` (z up); lengths in [m]; poses are 4x4 homogeneous
-transforms. The hand frame *is* the ``tool0`` frame (DESIGN §3): hand shapes are rigidly attached to it.
+transforms. The hand frame *is* the ``tool0`` frame (docs/design.md §3): hand shapes are rigidly attached to it.
 
 What is in the world:
 

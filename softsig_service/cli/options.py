@@ -48,7 +48,7 @@ def parse_object(spec: str, x: float, y: float, yaw: float) -> Any:
 
 CsMethodOption = Annotated[str, typer.Option("--cs-method", help="closure signature for C: ellipsoid | pca | mesh")]
 CriterionOption = Annotated[
-    str, typer.Option("--criterion", help="ellipsoid CS criterion: absolute [m] (DESIGN §4) | relative")
+    str, typer.Option("--criterion", help="ellipsoid CS criterion: absolute [m] (docs/design.md §4) | relative")
 ]
 PlacementOption = Annotated[
     str,

@@ -1,6 +1,6 @@
 """Monte Carlo validation campaigns: conditions x objects x strategies x trials, in parallel, resumable, reported.
 
-A campaign (DESIGN §7, the paper's Table I) runs :func:`~softsig_service.experiments.trial.run_trial` for every
+A campaign (docs/design.md §7, the paper's Table I) runs :func:`~softsig_service.experiments.trial.run_trial` for every
 cell (condition ``(sigma_r [rad], sigma_t [m])``, object, strategy) ``trials`` times:
 
 * **Seeds**: trial ``k`` of cell ``(i, j, s)`` (condition, object and strategy indices) gets

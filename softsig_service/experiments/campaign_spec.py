@@ -1,4 +1,4 @@
-"""The specification of a validation campaign (docs/design.md, "Validation in MuJoCo"): its conditions, objects,
+"""The specification of a validation campaign (docs/design.md §7): its conditions, objects,
 strategies, trials and seeds, and the paper's Table I.
 
 * **Seeds**: trial ``k`` of cell ``(i, j, s)`` (condition, object and strategy indices) gets
@@ -22,7 +22,7 @@ Condition = tuple[float, float]
 """(sigma_r [rad], sigma_t [m])."""
 
 TABLE1_CONDITIONS: tuple[Condition, ...] = ((0.0, 0.0), (0.1, 0.01), (0.2, 0.02))
-"""The paper's three uncertainty levels (DESIGN §7)."""
+"""The paper's three uncertainty levels (docs/design.md §7)."""
 TABLE1_OBJECTS: tuple[str, ...] = ("box", "apple", "cylinder")
 STRATEGY_NAMES: tuple[str, ...] = ("S", "C")
 PAPER_TABLE1: dict[str, tuple[tuple[int, int], ...]] = {
@@ -31,7 +31,7 @@ PAPER_TABLE1: dict[str, tuple[tuple[int, int], ...]] = {
     "cylinder": ((18, 19), (10, 16), (8, 11)),
 }
 """The paper's real-robot successes (S, C) out of :data:`PAPER_TRIALS` per condition of
-:data:`TABLE1_CONDITIONS` (DESIGN §7)."""
+:data:`TABLE1_CONDITIONS` (docs/design.md §7)."""
 PAPER_TRIALS = 20
 BACKENDS: tuple[str, ...] = ("local", "ray")
 
@@ -83,7 +83,7 @@ def trial_seed(seed: int, cell: Sequence[int], trial: int) -> int:
 
 @dataclass(frozen=True)
 class CampaignSpec:
-    """A campaign grid. ``objects`` are built-in names (DESIGN §7) placed at ``(x, y, yaw)`` [m, m, rad].
+    """A campaign grid. ``objects`` are built-in names (docs/design.md §7) placed at ``(x, y, yaw)`` [m, m, rad].
 
     ``cs_method`` ("ellipsoid" | "pca" | "mesh"), ``criterion`` (the ellipsoid CS's "absolute" | "relative") and
     ``placement`` ("open_centre" | "grasp_centre" | "previous") are passed to every plan (see :class:`PlanRequest`)."""

@@ -58,7 +58,7 @@ from softsig_service.geometry.pca import orient_axes
 DEFAULT_TOL = 1e-7
 """Default Todd–Yildirim tolerance of the optimality conditions (relative, dimensionless)."""
 MAX_TOL = 1e-7
-"""Loosest accepted tolerance (DESIGN §4: <= 1e-7)."""
+"""Loosest accepted tolerance (docs/design.md §4: <= 1e-7)."""
 MIN_TOL = 1e-13
 """Tightest accepted tolerance: below this, round-off can keep the conditions from ever being met."""
 DEFAULT_MAX_ITER = 500

@@ -1,7 +1,7 @@
 """Principal directions of a point or displacement set, and the sign rule for axes.
 
 Pure numpy, no I/O. Vectors are expressed in whatever frame the caller's points are in (for the closure
-signature: the hand frame, DESIGN §3); lengths are in the caller's unit (for the closure signature [m]).
+signature: the hand frame, docs/design.md §3); lengths are in the caller's unit (for the closure signature [m]).
 
 ``principal_components`` diagonalises the second-moment matrix of ``K`` samples, either about the origin
 (``about="zero"``: the dominant direction of *motion* when the samples are displacements) or about their
@@ -30,7 +30,7 @@ MOMENT_ORIGINS: tuple[MomentOrigin, ...] = ("zero", "mean")
 def orient_axes(vectors: ArrayLike, *, tie_rtol: float = AXIS_TIE_RTOL) -> NDArray[np.float64]:
     """Flip each vector (a row of ``vectors``, shape (..., d)) so that its sign is canonical.
 
-    The rule (docs/design.md, "Axes and their sign"): the component of largest magnitude is made positive;
+    The rule (docs/design.md §4): the component of largest magnitude is made positive;
     where several components are within ``tie_rtol`` (relative) of the largest, the first of them decides.
     Unlike "the first non-zero component is positive", this does not flip under a tiny rotation of an axis
     that lies in a coordinate plane (every built-in hand's CS has x ~ 0): the sign changes only where two

@@ -1,6 +1,6 @@
 """Rotations, quaternions and rigid transforms: the only place where quaternion orders meet.
 
-Conventions (DESIGN §3):
+Conventions (docs/design.md §3):
 
 * Internally a quaternion is a ``(4,)`` array in **wxyz** order (MuJoCo's order), unit norm, with the
   canonical sign ``w >= 0`` (``q`` and ``-q`` are the same rotation; we return the one with ``w >= 0``).

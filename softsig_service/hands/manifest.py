@@ -1,7 +1,7 @@
 """The hand manifest ``hand.toml``: its schema and loader.
 
 A manifest names the model file (MJCF or URDF, relative to the manifest's folder), the mount body whose frame
-is the hand frame (DESIGN §3: origin at the flange, +z = approach, +x across the palm), the reference points
+is the hand frame (docs/design.md §3: origin at the flange, +z = approach, +x across the palm), the reference points
 tracked through a closure, the closure command and the simulation settings. Every bad value raises
 :class:`~softsig_service.errors.InvalidManifest` naming the field (a dotted path) and, where they are a closed
 set, the valid choices.

@@ -1,7 +1,7 @@
 """Load a hand (built-in name or a user's ``hand.toml``) into a compiled MuJoCo model with resolved frames.
 
 The compiled model holds the hand alone with its ``mount`` body welded to the world, so the hand frame is the
-world frame of this model at rest (the mount body's frame; DESIGN §3). For a posture closure (fully actuated
+world frame of this model at rest (the mount body's frame; docs/design.md §3). For a posture closure (fully actuated
 hands, URDF hands) a position servo is added to each joint the posture names. Models are cached per manifest
 file and modification time: a request passes numbers, not files.
 """

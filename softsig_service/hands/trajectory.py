@@ -1,8 +1,8 @@
 """Reference-point trajectories of a closing hand, and their JSON form.
 
 A :class:`ClosureTrajectory` holds ``positions[t, i, :]``: the position [m] of reference point ``i`` at sample
-``t``, expressed in the hand frame (origin at the flange, +z = approach, +x across the palm; DESIGN §3), with the
-sample times ``times[t]`` [s] starting at the open hand (t = 0) and ending at the closed hand (t = T-1).
+``t``, expressed in the hand frame (origin at the flange, +z = approach, +x across the palm; docs/design.md §3), with
+the sample times ``times[t]`` [s] starting at the open hand (t = 0) and ending at the closed hand (t = T-1).
 ``surface`` optionally holds a dense set of hand-surface points tracked the same way (for the mesh method).
 """
 

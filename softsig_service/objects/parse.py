@@ -1,5 +1,5 @@
 """Objects from JSON (the schema in :mod:`softsig_service.objects.shape`) and the built-in objects of the
-reference experiment (docs/design.md, "Validation in MuJoCo"). Malformed specs raise
+reference experiment (docs/design.md §7). Malformed specs raise
 :class:`~softsig_service.errors.InvalidInput` naming the field.
 """
 
@@ -23,7 +23,7 @@ from softsig_service.objects.shape import (
 )
 
 _BUILTINS: dict[str, dict[str, Any]] = {
-    # DESIGN §7: default objects of the reference experiment (no sizes are published for the paper's objects)
+    # docs/design.md §7: default objects of the reference experiment (no sizes are published for the paper's objects)
     "box": {"kind": "box", "size": [0.16, 0.06, 0.05], "mass": 0.15},
     "apple": {"kind": "ellipsoid", "radii": [0.040, 0.040, 0.036], "mass": 0.18},
     "cylinder": {"kind": "cylinder", "radius": 0.03, "length": 0.16, "orientation": "lying", "mass": 0.20},
@@ -38,7 +38,7 @@ def builtin_object(
     yaw: float = 0.0,
     table_height: float = 0.0,
 ) -> TableObject:
-    """One of the built-in objects of DESIGN §7 at a table pose: ``"box"`` (0.16 x 0.06 x 0.05 m, 0.15 kg),
+    """One of the built-in objects of docs/design.md §7 at a table pose: ``"box"`` (0.16 x 0.06 x 0.05 m, 0.15 kg),
     ``"apple"`` (ellipsoid radii 0.040, 0.040, 0.036 m, 0.18 kg) or ``"cylinder"`` (radius 0.03 m, length
     0.16 m, lying, 0.20 kg). Raises :class:`InvalidInput` listing the choices for another name."""
     if name not in _BUILTINS:

@@ -1,6 +1,6 @@
 """Objects resting on the table: shapes, poses, principal horizontal axes, mass and friction.
 
-Frames and units (DESIGN §3): the world frame is the UR5 ``base_link`` (z up) and the table top is the plane
+Frames and units (docs/design.md §3): the world frame is the UR5 ``base_link`` (z up) and the table top is the plane
 ``z = table_height``. The **object frame** has its origin at the object's centre (for a mesh: the centre of
 the vertices' bounding box) and its z axis vertical; ``yaw`` [rad] is its rotation about world z. A box's
 size is (x, y, z) in that frame; a lying cylinder's axis is the object's x, a standing cylinder's is its z.
@@ -26,7 +26,7 @@ JSON schema of :func:`object_from_json` (unknown keys are rejected)::
     {"kind": "ellipsoid", "radii": [rx, ry, rz],               ...}   semi-axes [m]
     {"kind": "mesh",      "vertices": [[x, y, z], ...],
                           "faces": [[i, j, k], ...],           ...}   triangles, 0-based vertex indices
-    {"kind": "builtin",   "name": "box" | "apple" | "cylinder", ...}  the objects of DESIGN §7
+    {"kind": "builtin",   "name": "box" | "apple" | "cylinder", ...}  the objects of docs/design.md §7
     common keys: "mass": kg (> 0; required except for builtin), "friction": (> 0, default 1.0),
                  "name": str, "pose": {"x": m, "y": m, "yaw": rad, "z": m (optional centre height)}
                  (default pose x = 0.5, y = 0.0, yaw = 0.0: in front of the robot)

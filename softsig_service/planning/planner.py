@@ -6,10 +6,10 @@ points hand +z (the approach) down. The planner:
 1. proposes the flange orientation and horizontal position of both yaw branches: strategy **S** aligns hand +x
    with the object's major axis; strategy **C** solves the wrist-pose NLP that aligns the closure signature's
    horizontal projection with the object's closing axis (default the minor axis). Both put the same point of
-   the hand over the object's centre, so that S and C differ only in yaw (DESIGN §6): by default
+   the hand over the object's centre, so that S and C differ only in yaw (docs/design.md §6): by default
    (``placement="open_centre"``) the centre c_0 of the open hand's reference-point ellipsoid (the ellipsoid
    CS's anchor); ``placement="grasp_centre"`` the centre c_T of the closed hand's reference-point ellipsoid
-   (DESIGN §6's grasp centre; for the SoftHand it lies under the palm, where a top grasp cannot wrap an
+   (docs/design.md §6's grasp centre; for the SoftHand it lies under the palm, where a top grasp cannot wrap an
    object: docs/experiment_table1.md); ``placement="previous"`` keeps the earlier per-strategy rule (S: centre
    of the open reference points' bounding box, C: the CS anchor) for ablations;
 2. descends from high above along the approach until the open hand comes within ``margin`` of the table or the

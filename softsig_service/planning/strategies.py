@@ -1,6 +1,6 @@
 """Top-grasp strategies as pure math: S (bounding-box alignment) and the alignment measures of both.
 
-World frame = UR5 ``base_link`` (z up); hand frame per DESIGN §3 (+z approach, +x across the palm). A top grasp
+World frame = UR5 ``base_link`` (z up); hand frame per docs/design.md §3 (+z approach, +x across the palm). A top grasp
 has hand +z pointing down. Strategy C's optimisation lives in :mod:`softsig_service.planning.wrist_pose`.
 """
 

@@ -75,7 +75,7 @@ def markers_signature(
 
 
 def run_stiffness_signature(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
-    """The stiffness signature of a hand on an object (DESIGN §5): grasp in MuJoCo, 6x6 grasp stiffness at the
+    """The stiffness signature of a hand on an object (docs/design.md §5): grasp in MuJoCo, 6x6 grasp stiffness at the
     object's centre (hand frame, linear first), break forces of the pull test in the default 26 directions.
 
     ``params``: ``manifest_path``, ``limits`` (the service's model limits) and ``object`` (object JSON). Writes
@@ -99,7 +99,7 @@ def run_stiffness_signature(params: dict[str, Any], ctx: JobContext) -> dict[str
 
 
 def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
-    """Validate a plan in MuJoCo (DESIGN §7): ``trials`` rollouts of :func:`~softsig_service.simulation.rollout.
+    """Validate a plan in MuJoCo (docs/design.md §7): ``trials`` rollouts of :func:`~softsig_service.simulation.rollout.
     run_trial` (plan on the nominal pose, object perturbed by yaw ~ N(0, sigma_r^2) [rad], x, y ~ N(0, sigma_t^2)
     [m]), trial ``k`` seeded as ``softsig validate`` seeds it (same seed, same outcomes).
 
@@ -150,7 +150,7 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
 
 
 def run_experiment(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
-    """The reference experiment (DESIGN §7, the paper's Table I) with
+    """The reference experiment (docs/design.md §7, the paper's Table I) with
     :func:`~softsig_service.experiments.campaign.run_campaign`: 3 conditions x 3 objects x S and C x ``trials``,
     in ``workers`` processes (default: the campaign's own choice, every core). Its files (``campaign.json``,
     ``trials.jsonl``, ``results.json``, ``results.csv``, ``report.md``, ``table1.png``) go to the job's folder.

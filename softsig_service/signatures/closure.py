@@ -1,17 +1,17 @@
-"""The closure signature (CS) of a hand: the axis along which the hand closes (DESIGN §4).
+"""The closure signature (CS) of a hand: the axis along which the hand closes (docs/design.md §4).
 
 Pure math, no I/O. Input positions are ``P[t, i, :]`` [m], reference point ``i`` at sample ``t`` in the *hand
-frame* (origin at the flange, +z = approach, +x across the palm; DESIGN §3), t = 0 the open hand, t = T-1 the
+frame* (origin at the flange, +z = approach, +x across the palm; docs/design.md §3), t = 0 the open hand, t = T-1 the
 closed hand. Every vector of a :class:`ClosureSignature` is in the hand frame.
 
 Three methods, one result type:
 
-* **ellipsoid** (:func:`ellipsoid_closure_signature`) — the five steps of DESIGN §4: E_0, E_T = minimum-volume
+* **ellipsoid** (:func:`ellipsoid_closure_signature`) — the five steps of docs/design.md §4: E_0, E_T = minimum-volume
   enclosing ellipsoids of the first and last frames (:func:`~softsig_service.geometry.ellipsoid.mvee`); along
   each axis r_k of E_0 the half-width ``a_k(t) = sqrt(r_k^T A_t^-1 r_k)`` [m]; the change of each half-width
   is delta_k, by one of two criteria (:data:`CRITERIA`):
 
-  - ``"absolute"`` (the default, DESIGN §4): ``delta_k = a_k(T) - a_k(0)`` [m], negative = the hand narrows
+  - ``"absolute"`` (the default, docs/design.md §4): ``delta_k = a_k(T) - a_k(0)`` [m], negative = the hand narrows
     along r_k;
   - ``"relative"`` (an option, never the default): ``delta_k = (a_k(T) - a_k(0)) / a_k(0)`` (dimensionless).
     It is large along a thin axis of E_0 whatever the hand does: a nearly flat open hand tends to get its
@@ -85,14 +85,14 @@ METHODS: tuple[Method, ...] = ("ellipsoid", "pca", "mesh")
 Criterion = Literal["absolute", "relative"]
 """How the ellipsoid method measures the change of a half-width: ``a_k(T) - a_k(0)`` [m] or that / ``a_k(0)``."""
 CRITERIA: tuple[Criterion, ...] = ("absolute", "relative")
-"""The ellipsoid criteria; the first, "absolute", is the default (DESIGN §4)."""
+"""The ellipsoid criteria; the first, "absolute", is the default (docs/design.md §4)."""
 DEFAULT_CRITERION: Criterion = "absolute"
 MeshSource = Literal["surface", "reference_points"]
 
 DISTINCTNESS_CAP = 1e6
 """Reported distinctness when the second-largest |deformation| is 0 (or the ratio would exceed it)."""
 AMBIGUITY_THRESHOLD = 1.1
-"""A CS whose distinctness is below this is flagged ``ambiguous`` (DESIGN §4)."""
+"""A CS whose distinctness is below this is flagged ``ambiguous`` (docs/design.md §4)."""
 ELLIPSOID_RESOLUTION_FACTOR = 10.0
 """Ellipsoid deltas with |delta| <= this x tol (relative criterion), or this x tol x the largest semi-axis of E_0
 and E_T [m] (absolute criterion), are below the MVEE's precision and count as 0 in distinctness."""
@@ -114,7 +114,7 @@ class ClosureSignature:
         method: "ellipsoid", "pca" or "mesh".
         params: the method's parameters (JSON-ready): ellipsoid ``{"tol", "max_iter", "lift_epsilon",
             "criterion"}``, pca ``{"about"}``, mesh ``{"source"}``.
-        axis: (3,) unit CS axis in the hand frame, sign rule of DESIGN §4 (== ``axes[0]``).
+        axis: (3,) unit CS axis in the hand frame, sign rule of docs/design.md §4 (== ``axes[0]``).
         anchor: (3,) point the axis passes through [m], hand frame (c_0 or the initial centroid).
         magnitude: ``deformation[0]``: ellipsoid delta, signed: with ``params["criterion"] == "absolute"`` (the
             default) the change of the half-width [m], with "relative" that change / the initial half-width
@@ -216,9 +216,9 @@ def compute_closure_signature(
 
     ``tol``, ``max_iter`` and ``lift_epsilon`` configure the ellipsoid method's MVEE (see
     :mod:`softsig_service.geometry.ellipsoid`) and ``criterion`` its delta ("absolute" [m], the default, or
-    "relative"); ``pca_about`` configures the pca method ("zero", the DESIGN default, or "mean"). Parameters of
-    the other methods are ignored: pca and mesh neither use the criterion nor record it in their ``params``
-    (only the ellipsoid method has one), but an unknown criterion is refused whatever the method. The mesh
+    "relative"); ``pca_about`` configures the pca method ("zero", the default of docs/design.md §4, or "mean").
+    Parameters of the other methods are ignored: pca and mesh neither use the criterion nor record it in their
+    ``params`` (only the ellipsoid method has one), but an unknown criterion is refused whatever the method. The mesh
     method uses ``traj.surface`` when present and otherwise the reference points (``params["source"]`` says
     which). Raises :class:`InvalidInput` for an unknown method or criterion and :class:`InvalidTrajectory` for
     unusable positions.
@@ -322,7 +322,7 @@ def ellipsoid_axis_series(
     max_iter: int = DEFAULT_MAX_ITER,
     lift_epsilon: float = DEFAULT_LIFT_EPSILON,
 ) -> EllipsoidAxisSeries:
-    """Fit E_t for every frame of ``positions`` (T, N, 3) [m], hand frame; measure it along E_0's axes (DESIGN
+    """Fit E_t for every frame of ``positions`` (T, N, 3) [m], hand frame; measure it along E_0's axes (docs/design.md
     §4, step 4): half-widths [m], their absolute [m] and relative changes, and the centre drift [m]."""
     p = _check_positions(positions, "positions", min_points=MIN_POINTS)
     fits = mvee_batch(p, tol=tol, max_iter=max_iter, lift_epsilon=lift_epsilon)

@@ -1,9 +1,9 @@
 """The stiffness signature (SS) of a grasp: the 6x6 grasp stiffness at the object and the break forces.
 
-Pure math (numpy only, DESIGN §2): no MuJoCo here. :mod:`softsig_service.simulation.grasp` finds a grasp
+Pure math (numpy only, docs/design.md §2): no MuJoCo here. :mod:`softsig_service.simulation.grasp` finds a grasp
 in MuJoCo and extracts the matrices below; :mod:`softsig_service.simulation.pullout` measures break forces.
 
-**Frames and units.** Every vector and matrix is in the *hand frame* (DESIGN §3: the mount body's frame, +z the
+**Frames and units.** Every vector and matrix is in the *hand frame* (docs/design.md §3: the mount body's frame, +z the
 approach). Twists, wrenches and stiffness are ordered linear first, then angular (Pinocchio's order), with the
 object's centre as the reference point: a small object displacement ``u = (dx [m], dtheta [rad])`` produces the
 restoring wrench ``w = -K u`` = (force [N], torque [N·m]), so ``K`` has blocks in [N/m], [N] (= N·m/m) and

@@ -40,7 +40,7 @@ of the Woodbury subtraction (a free hand direction) and set to 0."""
 @dataclass(frozen=True, eq=False)
 class PrincipalStiffness:
     """Eigen-decomposition of a 3x3 stiffness block: ``values`` (3,) descending [N/m] or [N·m/rad], and
-    ``directions`` (3, 3) whose rows are the unit eigenvectors in the hand frame (sign rule of DESIGN §4)."""
+    ``directions`` (3, 3) whose rows are the unit eigenvectors in the hand frame (sign rule of docs/design.md §4)."""
 
     values: FloatArray
     directions: FloatArray
@@ -121,7 +121,7 @@ class ContactRecord:
 
 @dataclass(frozen=True, eq=False)
 class StiffnessSignature:
-    """The stiffness signature of one hand holding one object (DESIGN §5), hand frame.
+    """The stiffness signature of one hand holding one object (docs/design.md §5), hand frame.
 
     Attributes:
         K: (6, 6) grasp stiffness at the object's centre, linear then angular, symmetric PSD

@@ -1,4 +1,4 @@
-"""A power grasp of an object in MuJoCo (docs/design.md, "The stiffness signature").
+"""A power grasp of an object in MuJoCo (docs/design.md §5).
 
 **Grasp.** From the open posture the closure command ramps to closed over the manifest's ``duration`` and is
 held for :attr:`GraspSettings.settle` [s] (default max(manifest's, 1 s)) while the object is *held in place*

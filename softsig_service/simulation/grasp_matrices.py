@@ -1,4 +1,4 @@
-"""The matrices of a simulated grasp's stiffness (docs/design.md, "The stiffness signature").
+"""The matrices of a simulated grasp's stiffness (docs/design.md §5).
 
 **Matrices** (:func:`grasp_matrices`), in the hand frame, about the object's centre (its body origin, which is
 its centre of mass):

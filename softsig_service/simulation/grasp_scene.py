@@ -14,7 +14,7 @@ ramp) gives the open and closed positions of the reference points that move by m
 positions — where the fingers converge in free space, so every finger closing toward it meets the object (the
 midpoint of the open and closed centroids, tried first, leaves the object above the fingers of the palm-facing
 hands, which then flick it away). The object is centred there and, if it overlaps the
-open hand, pushed along the hand's +z (the approach direction, DESIGN §3: out of the palm, toward the object) in
+open hand, pushed along the hand's +z (the approach direction, docs/design.md §3: out of the palm, toward the object) in
 steps of :attr:`GraspSettings.search_step` until it clears the open hand by :attr:`GraspSettings.clearance`.
 An explicit ``center`` [m] (hand frame) is used as given, and must not overlap the open hand. The object's
 orientation in the hand frame defaults to :data:`TOP_GRASP_ORIENTATION` (a top grasp: the object's z up = hand

@@ -1,6 +1,6 @@
 """The grasped state of a hand and an object in MuJoCo, the settings of the grasp simulation and its constants.
 
-Frames: the hand frame (docs/design.md, "Conventions"); lengths [m], forces [N], times [s].
+Frames: the hand frame (docs/design.md §3); lengths [m], forces [N], times [s].
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The pull test: the break forces of a grasp in MuJoCo (docs/design.md, "The stiffness signature").
+"""The pull test: the break forces of a grasp in MuJoCo (docs/design.md §5).
 
 **Pull test** (:func:`pull_test`): the wrist is fixed (the hand's ``mount`` is welded to the world), the object
 is grasped as by :func:`~softsig_service.simulation.grasp.grasp_object` (gravity off, closure command held

@@ -1,6 +1,6 @@
 """The MuJoCo rollout of a planned top grasp: perturb the object, approach, close, lift, hold, judge.
 
-The sequence (DESIGN §7), all in the world frame (UR5 ``base_link``, z up), SI units:
+The sequence (docs/design.md §7), all in the world frame (UR5 ``base_link``, z up), SI units:
 
 1. **Plan** on the *nominal* object pose (done by the caller, :func:`softsig_service.experiments.trial.run_trial`):
    a plan that fails ends the trial with the plan's first reason (``unreachable``, ``collision:table``, ...).
@@ -21,7 +21,7 @@ The sequence (DESIGN §7), all in the world frame (UR5 ``base_link``, z up), SI 
    :attr:`RolloutConfig.lift_time` [s]; the closure command stays closed.
 7. **Hold** for :attr:`RolloutConfig.hold_time` [s] (1 s).
 
-**Judge** (DESIGN §7): success iff the hand **carries** the object at the end of the hold, i.e. all of
+**Judge** (docs/design.md §7): success iff the hand **carries** the object at the end of the hold, i.e. all of
 
 * the object touches the hand (a MuJoCo contact, distance <= 0, between an object geom and a hand geom);
 * the object is off the table (no contact, distance <= 0, between an object geom and the table);
@@ -95,12 +95,12 @@ class RolloutConfig:
     """Timing and thresholds of a trial (SI units).
 
     Attributes:
-        lift: [m] height the flange rises after closing (DESIGN §7: 0.15).
+        lift: [m] height the flange rises after closing (docs/design.md §7: 0.15).
         success_fraction: a carried object must have risen by at least this fraction of ``lift``
-            (DESIGN §7: 0.5, i.e. 0.075 m of a 0.15 m lift).
+            (docs/design.md §7: 0.5, i.e. 0.075 m of a 0.15 m lift).
         approach_time: [s] duration of the straight approach from the pre-grasp to the grasp.
         lift_time: [s] duration of the lift.
-        hold_time: [s] duration of the hold at the top (DESIGN §7: 1 s).
+        hold_time: [s] duration of the hold at the top (docs/design.md §7: 1 s).
         control_period: [s] period of the controller (servo targets updated, contacts checked); a multiple
             of the scene's time step (rounded to one).
         waypoints: number of IK waypoints along each Cartesian line (approach, lift), ends included.
@@ -221,7 +221,7 @@ class SimOutcome:
 
 def judge(sim: SimOutcome, cfg: RolloutConfig) -> str | None:
     """The verdict on a simulated trial: None if the hand carries the object, else the reason (module
-    docstring, DESIGN §7). Sag and slip never fail a carried object."""
+    docstring, docs/design.md §7). Sag and slip never fail a carried object."""
     if sim.unstable:
         return "sim_unstable"
     if sim.arm_collision_time is not None:

@@ -1,9 +1,9 @@
 """The validation scene in MuJoCo: a table, the UR5 with a hand at ``tool0``, and an object as a free body.
 
-Composed with :class:`mujoco.MjSpec` (DESIGN §7) and compiled once per (hand, object shape, table height); a
+Composed with :class:`mujoco.MjSpec` (docs/design.md §7) and compiled once per (hand, object shape, table height); a
 trial changes only the poses, the controls and the ``MjData`` (:func:`build_scene` is cached per process).
 
-Frames and units (DESIGN §3): the world frame is the UR5 ``base_link`` (z up) at the origin; the table top is
+Frames and units (docs/design.md §3): the world frame is the UR5 ``base_link`` (z up) at the origin; the table top is
 the plane z = ``table_height`` [m] (default 0.0: the robot base stands on the table). Lengths [m], angles [rad],
 masses [kg], stiffness [N·m/rad] or [N/m], damping [N·m·s/rad] or [N·s/m].
 

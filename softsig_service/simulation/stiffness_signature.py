@@ -1,4 +1,4 @@
-"""The stiffness signature of a hand (docs/design.md, "The stiffness signature"): find a power grasp of an object
+"""The stiffness signature of a hand (docs/design.md §5): find a power grasp of an object
 in MuJoCo, compute its 6x6 grasp stiffness at the wrist and, optionally, its break forces by the pull test
 (:mod:`softsig_service.simulation.pullout`). Frames: the hand frame; stiffness [N/m], [N·m/rad]; forces [N].
 """

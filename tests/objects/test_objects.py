@@ -29,7 +29,7 @@ def axis_close(a: np.ndarray, b: np.ndarray, tol: float = 1e-9) -> bool:
     return bool(abs(abs(float(np.dot(a, b))) - 1.0) < tol)
 
 
-# -- built-ins (DESIGN §7) ---------------------------------------------------------------------------------
+# -- built-ins (docs/design.md §7) ---------------------------------------------------------------------------------
 
 
 def test_builtin_box() -> None:

@@ -1,4 +1,4 @@
-"""Every built-in hand other than the SoftHand carries each nominal object of DESIGN §7 with strategy S at
+"""Every built-in hand other than the SoftHand carries each nominal object of docs/design.md §7 with strategy S at
 sigma = 0 (the judge of :mod:`softsig_service.simulation.rollout`), or the exception is documented and shown.
 
 The bands on sag and slip are the figures the hands' READMEs report (hands/<hand>/README.md, "Top grasps in the

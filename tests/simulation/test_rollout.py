@@ -21,7 +21,7 @@ from softsig_service.objects import builtin_object
 from softsig_service.planning.planner import PlanRequest
 from softsig_service.simulation.rollout import REASONS, Perturbation, RolloutConfig, SimOutcome, judge
 
-LIFT_THRESHOLD = 0.5 * 0.15  # DESIGN §7: a carried object rose by at least half the 0.15 m lift
+LIFT_THRESHOLD = 0.5 * 0.15  # docs/design.md §7: a carried object rose by at least half the 0.15 m lift
 
 
 def _comparable(r: TrialResult) -> dict[str, Any]:

@@ -73,7 +73,7 @@ def _require_kind(ctx: AppContext, kind: str) -> None:
 )
 async def create_validation(ctx: Ctx, body: ValidationIn) -> JSONResponse:
     """Plan the grasp of ``object`` on its nominal pose and simulate ``trials`` rollouts with the object
-    perturbed (DESIGN §7). 202 with the job and ``Location: /v1/jobs/{id}``; its result has ``trials``,
+    perturbed (docs/design.md §7). 202 with the job and ``Location: /v1/jobs/{id}``; its result has ``trials``,
     ``successes`` and ``outcomes`` (one ``{seed, success, reason, lift_height}`` per trial); files
     ``validation.json`` and ``outcomes.csv``."""
     _require_kind(ctx, "validation")
