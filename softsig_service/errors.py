@@ -106,3 +106,7 @@ class TimeLimitExceeded(SoftsigError):
 
 class ServiceBusy(SoftsigError):
     """The service cannot take the work now (job queue full, worker pool restarting); retry later."""
+
+
+class NotAvailable(SoftsigError):
+    """The service does not offer this kind of work (a job kind not configured in this deployment)."""

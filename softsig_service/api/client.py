@@ -114,9 +114,10 @@ class SoftsigClient:
 
     # -- hands ----------------------------------------------------------------------------------------------
 
-    def hands(self) -> HandList:
-        """Every registered hand."""
-        return HandList.model_validate(self.request("GET", "/v1/hands").json())
+    def hands(self, *, limit: int = 50, offset: int = 0) -> HandList:
+        """One page of the registered hands, by name."""
+        params = {"limit": limit, "offset": offset}
+        return HandList.model_validate(self.request("GET", "/v1/hands", params=params).json())
 
     def hand(self, name: str) -> HandOut:
         """One hand (its ``etag`` is what :meth:`delete_hand` and :meth:`replace_hand` need)."""
@@ -154,45 +155,49 @@ class SoftsigClient:
     def compute_closure_signature(
         self,
         hand: str,
-        method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid",
+        cs_method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid",
         *,
-        criterion: Literal["absolute", "relative"] = "absolute",
+        cs_criterion: Literal["absolute", "relative"] = "absolute",
         if_match: str | None = None,
     ) -> SignatureOut:
         """Simulate the hand's closure, compute its closure signature (hand frame) and store it as a new version.
 
-        ``criterion`` is the ellipsoid method's: "absolute" (deltas [m], the default) or "relative".
+        ``cs_criterion`` is the ellipsoid method's: "absolute" (deltas [m], the default) or "relative".
         """
         headers = {"If-Match": if_match} if if_match else {}
-        body = {"kind": "closure", "method": method, "criterion": criterion}
-        r = self.request("POST", f"/v1/hands/{hand}/signatures", json=body, headers=headers)
+        body = {"cs_method": cs_method, "cs_criterion": cs_criterion}
+        r = self.request("POST", f"/v1/hands/{hand}/signatures/closure", json=body, headers=headers)
         return SignatureOut.model_validate(r.json())
 
     def compute_stiffness_signature(self, hand: str, obj: Mapping[str, Any]) -> JobOut:
         """Start the stiffness-signature job of ``hand`` on ``obj`` (object JSON); wait with :meth:`wait_job`."""
-        r = self.request("POST", f"/v1/hands/{hand}/signatures", json={"kind": "stiffness", "object": dict(obj)})
+        r = self.request("POST", f"/v1/hands/{hand}/signatures/stiffness", json={"object": dict(obj)})
         return JobOut.model_validate(r.json())
 
     def upload_markers(
         self,
         hand: str,
         markers: FileSpec,
-        method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid",
+        cs_method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid",
         *,
-        criterion: Literal["absolute", "relative"] = "absolute",
+        cs_criterion: Literal["absolute", "relative"] = "absolute",
         strict_points: bool = True,
     ) -> SignatureOut:
         """Upload tracked markers (.csv ``time,point,x,y,z`` [s, m, hand frame] or trajectory .json) and store the
-        CS from them; ``criterion`` is the ellipsoid method's ("absolute" [m], the default, or "relative")."""
+        CS from them; ``cs_criterion`` is the ellipsoid method's ("absolute" [m], the default, or "relative")."""
         r = self.request(
             "POST",
             f"/v1/hands/{hand}/signatures/markers",
             files={"file": _file(markers)},
-            data={"method": method, "criterion": criterion, "strict_points": "true" if strict_points else "false"},
+            data={
+                "cs_method": cs_method,
+                "cs_criterion": cs_criterion,
+                "strict_points": "true" if strict_points else "false",
+            },
         )
         return SignatureOut.model_validate(r.json())
 
-    def signatures(self, hand: str, *, kind: str | None = None, limit: int = 100, offset: int = 0) -> SignatureList:
+    def signatures(self, hand: str, *, kind: str | None = None, limit: int = 50, offset: int = 0) -> SignatureList:
         """A hand's signature versions, newest first."""
         params: dict[str, Any] = {"limit": limit, "offset": offset}
         if kind:
@@ -266,7 +271,7 @@ class SoftsigClient:
 
     def cancel_job(self, job_id: str) -> JobOut:
         """Cancel a queued or running job."""
-        return JobOut.model_validate(self.request("DELETE", f"/v1/jobs/{job_id}").json())
+        return JobOut.model_validate(self.request("POST", f"/v1/jobs/{job_id}/cancel").json())
 
     def wait_job(self, job_id: str, *, timeout: float = 600.0, poll: float = 0.2) -> JobOut:
         """Poll a job until it finishes (or raise TimeoutError after ``timeout`` [s])."""

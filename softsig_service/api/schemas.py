@@ -134,7 +134,8 @@ def object_json(spec: BaseModel) -> dict[str, Any]:
 
 
 class Vector3(Out):
-    """A position [m]."""
+    """A 3-D vector: a position [m], a direction (unit) or a force [N], by context; every vector of the API has
+    this form."""
 
     x: float
     y: float
@@ -211,9 +212,12 @@ class HandOut(HandSummary):
 
 
 class HandList(Out):
-    """Every registered hand."""
+    """Registered hands, by name."""
 
     items: list[HandSummary]
+    total: int
+    limit: int
+    offset: int
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -231,34 +235,35 @@ CRITERION_DESCRIPTION = (
 )
 
 
+CsMethod = Literal["ellipsoid", "pca", "mesh"]
+"""The closure-signature method (``softsig_service.signatures.closure.METHODS``), named ``cs_method`` everywhere."""
+
+
 class ClosureSignatureIn(Strict):
     """Compute the closure signature from a simulated free closure of the hand (docs/design.md §4)."""
 
-    kind: Literal["closure"]
-    method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid"
-    criterion: ClosureCriterion = Field("absolute", description=CRITERION_DESCRIPTION)
+    cs_method: CsMethod = "ellipsoid"
+    cs_criterion: ClosureCriterion = Field("absolute", description=CRITERION_DESCRIPTION)
 
 
 class StiffnessSignatureIn(Strict):
     """Compute the stiffness signature: grasp ``object`` in MuJoCo, 6x6 stiffness and break forces
     (docs/design.md §5)."""
 
-    kind: Literal["stiffness"]
     object: ObjectSpec
 
 
-SignatureIn = Annotated[ClosureSignatureIn | StiffnessSignatureIn, Field(discriminator="kind")]
-
-
 class SignatureSummary(Out):
-    """One stored signature version. ``criterion`` is the ellipsoid closure signature's criterion ("absolute":
-    deltas in metres, "relative": dimensionless); null for other methods and kinds."""
+    """One stored signature version. Closure signatures: ``cs_method`` and ``cs_criterion`` (the ellipsoid
+    method's criterion, "absolute": deltas in metres, "relative": dimensionless; null for pca and mesh).
+    Stiffness signatures: ``object``, the name of the object grasped (``cs_method`` and ``cs_criterion`` null)."""
 
     hand: str
     version: int
     kind: Literal["closure", "stiffness"] | str
-    method: str
-    criterion: ClosureCriterion | None = None
+    cs_method: CsMethod | None = None
+    cs_criterion: ClosureCriterion | None = None
+    object: str | None = None
     source: Literal["simulation", "markers"] | str
     hand_revision: int
     etag: str
@@ -298,8 +303,8 @@ class PlanIn(Strict):
     closing_axis: Literal["minor", "major"] = Field("minor", description="object axis the CS closes across (C)")
     approach_distance: float = Field(0.10, ge=0.0, le=0.5, description="pre-grasp distance along the approach [m]")
     margin: float = Field(0.005, ge=0.0, le=0.05, description="clearance kept from table and object [m]")
-    cs_method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid"
-    cs_criterion: Literal["absolute", "relative"] = Field(
+    cs_method: CsMethod = "ellipsoid"
+    cs_criterion: ClosureCriterion = Field(
         "absolute", description="ellipsoid CS criterion: absolute [m] (docs/design.md §4) or relative half-width change"
     )
     placement: Literal["open_centre", "grasp_centre", "previous"] = Field(
@@ -313,7 +318,7 @@ class PlanIn(Strict):
 class Approach(Out):
     """Straight approach: unit ``direction`` in ``frame_id``, distances [m] (moveit_msgs/GripperTranslation)."""
 
-    direction: list[float]
+    direction: Vector3
     frame_id: str = "base_link"
     desired_distance: float
     min_distance: float
@@ -441,9 +446,12 @@ class JobFile(Out):
 
 
 class JobFiles(Out):
-    """The result files of a job."""
+    """The result files of a job, by name."""
 
     items: list[JobFile]
+    total: int
+    limit: int
+    offset: int
 
 
 # ----------------------------------------------------------------------------------------------------------

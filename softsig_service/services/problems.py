@@ -13,6 +13,7 @@ from softsig_service.errors import (
     Conflict,
     HandNotFound,
     ModelTooLarge,
+    NotAvailable,
     NotFound,
     PreconditionFailed,
     PreconditionRequired,
@@ -36,6 +37,7 @@ _STATUS: tuple[tuple[type[SoftsigError], int], ...] = (
     (PreconditionFailed, 412),
     (ModelTooLarge, 413),
     (PreconditionRequired, 428),
+    (NotAvailable, 501),
     (ServiceBusy, 503),
     (RenderUnavailable, 503),
     (TimeLimitExceeded, 422),
@@ -55,6 +57,7 @@ TITLES = {
     428: "Precondition required",
     429: "Too many requests",
     500: "Internal error",
+    501: "Not implemented",
     503: "Service unavailable",
 }
 _MAX_VALUE_CHARS = 300

@@ -20,3 +20,32 @@ def to_jsonable(value: Any) -> Any:
     if callable(tolist):
         return to_jsonable(tolist())
     return str(value)
+
+
+VECTOR_KEYS = frozenset({"axis", "anchor", "center", "direction", "position", "normal", "force"})
+"""Keys whose value, when a list of three numbers, is a 3-D vector (an axis, a point [m], a force [N])."""
+VECTOR_ROW_KEYS = frozenset({"axes", "directions"})
+"""Keys whose value, when a list of lists of three numbers, is a list of 3-D unit vectors."""
+
+
+def _is_triple(value: Any) -> bool:
+    return isinstance(value, list) and len(value) == 3 and all(isinstance(v, int | float) for v in value)
+
+
+def vectors_as_objects(value: Any) -> Any:
+    """``value`` (plain JSON) with every 3-D vector under :data:`VECTOR_KEYS` (and every row of a list under
+    :data:`VECTOR_ROW_KEYS`) written as ``{"x", "y", "z"}``, the REST API's one form of a vector. Lists that
+    are not triples (joint positions, per-axis values, matrices) are left as they are."""
+    if isinstance(value, dict):
+        out: dict[str, Any] = {}
+        for k, v in value.items():
+            if k in VECTOR_KEYS and _is_triple(v):
+                out[k] = {"x": v[0], "y": v[1], "z": v[2]}
+            elif k in VECTOR_ROW_KEYS and isinstance(v, list) and v and all(_is_triple(r) for r in v):
+                out[k] = [{"x": r[0], "y": r[1], "z": r[2]} for r in v]
+            else:
+                out[k] = vectors_as_objects(v)
+        return out
+    if isinstance(value, list):
+        return [vectors_as_objects(v) for v in value]
+    return value

@@ -48,7 +48,7 @@ def test_a_job_reports_progress_and_leaves_result_files(api: TestClient) -> None
         assert 400 <= r.status_code < 500 and b"SQLite" not in r.content
         assert_problem(r, r.status_code)
     assert_problem(api.get(f"/v1/jobs/{job_id}/files/nothing.csv"), 404, "name")
-    assert_problem(api.delete(f"/v1/jobs/{job_id}", headers=AUTH), 409, "job_id")
+    assert_problem(api.post(f"/v1/jobs/{job_id}/cancel", headers=AUTH), 409, "job_id")
     assert job_id in {j["id"] for j in api.get("/v1/jobs", params={"status": "succeeded"}).json()["items"]}
 
 
@@ -57,8 +57,8 @@ def test_cancel_kills_the_job_and_its_workers(api: TestClient) -> None:
     out = api.app.state.ctx.jobs.out_dir(job_id)  # type: ignore[attr-defined]
     pids = wait_for(lambda: (out / "pids.json").is_file() and json.loads((out / "pids.json").read_text()))
     assert pid_alive(pids["job"]) and pid_alive(pids["helper"])
-    assert_problem(api.delete(f"/v1/jobs/{job_id}"), 401)
-    r = api.delete(f"/v1/jobs/{job_id}", headers=AUTH)
+    assert_problem(api.post(f"/v1/jobs/{job_id}/cancel"), 401)
+    r = api.post(f"/v1/jobs/{job_id}/cancel", headers=AUTH)
     assert r.status_code == 202 and r.json()["cancel_requested"] is True
     job = wait_for(lambda: finished(api, job_id))
     assert job["status"] == "cancelled"
@@ -98,7 +98,7 @@ def test_queue_cap_and_restart_marks_unfinished_jobs(tmp_path: Path) -> None:
             assert type(exc).__name__ == "ServiceBusy"
         else:
             raise AssertionError("a third job must be refused")
-        r = client.delete(f"/v1/jobs/{second}", headers=AUTH)
+        r = client.post(f"/v1/jobs/{second}/cancel", headers=AUTH)
         assert r.status_code == 202
         assert wait_for(lambda: finished(client, second))["status"] == "cancelled"
     # the service stopped with the first job running: the next start marks it failed
@@ -111,4 +111,4 @@ def test_queue_cap_and_restart_marks_unfinished_jobs(tmp_path: Path) -> None:
 def test_unknown_jobs(api: TestClient) -> None:
     assert_problem(api.get("/v1/jobs/" + "a" * 32), 404, "job_id")
     assert_problem(api.get("/v1/jobs/xyz"), 422, "job_id")
-    assert_problem(api.delete("/v1/jobs/" + "a" * 32, headers=AUTH), 404, "job_id")
+    assert_problem(api.post("/v1/jobs/" + "a" * 32 + "/cancel", headers=AUTH), 404, "job_id")

@@ -61,8 +61,8 @@ def test_experiment_job(api: TestClient) -> None:
 
 def test_stiffness_signature_job_stores_a_version(api: TestClient) -> None:
     r = api.post(
-        "/v1/hands/parallel_gripper/signatures",
-        json={"kind": "stiffness", "object": {"kind": "builtin", "name": "box"}},
+        "/v1/hands/parallel_gripper/signatures/stiffness",
+        json={"object": {"kind": "builtin", "name": "box"}},
         headers=AUTH,
     )
     assert r.status_code == 202, r.text
@@ -71,7 +71,7 @@ def test_stiffness_signature_job_stores_a_version(api: TestClient) -> None:
     assert job["status"] == "succeeded", job
     version = job["result"]["version"]
     sig = api.get(f"/v1/hands/parallel_gripper/signatures/{version}").json()
-    assert sig["kind"] == "stiffness" and sig["method"] == "box"
+    assert sig["kind"] == "stiffness" and sig["object"] == "box" and sig["cs_method"] is None
     K = sig["signature"]["K"]
     assert len(K) == 6 and all(len(row) == 6 for row in K)
     assert all(abs(K[i][j] - K[j][i]) <= 1e-6 * (1 + abs(K[i][j])) for i in range(6) for j in range(6))

@@ -22,7 +22,7 @@ from fastapi import APIRouter, File, Path, Request, Response, UploadFile
 from starlette.concurrency import run_in_threadpool
 
 from softsig_service.api.deps import Ctx, IfMatchRequired, ReadAccess, WriteAccess
-from softsig_service.api.routes.common import READ, WRITE, problem
+from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, WRITE, Limit, Offset, page, problem
 from softsig_service.api.schemas import HAND_NAME_PATTERN, HandList, HandOut
 from softsig_service.errors import Conflict, InvalidHandModel, InvalidManifest, ModelTooLarge, UnsafePath
 from softsig_service.hands.assets import check_relative_path
@@ -148,9 +148,9 @@ def _remove(folder: str | FsPath | None) -> None:
 
 
 @router.get("/hands", response_model=HandList, dependencies=[ReadAccess], responses=READ, summary="List hands")
-def list_hands(ctx: Ctx) -> dict[str, Any]:
-    """Every registered hand (built in and uploaded), by name."""
-    return {"items": [hand_summary(r) for r in repo.list_hands(ctx.registry)]}
+def list_hands(ctx: Ctx, limit: Limit = DEFAULT_LIMIT, offset: Offset = 0) -> dict[str, Any]:
+    """The registered hands (built in and uploaded), by name."""
+    return page([hand_summary(r) for r in repo.list_hands(ctx.registry)], limit, offset)
 
 
 @router.post(

@@ -22,7 +22,7 @@ from starlette.concurrency import run_in_threadpool
 from softsig_service.api.context import AppContext
 from softsig_service.api.deps import Ctx, ReadAccess, WriteAccess
 from softsig_service.api.job_responses import accepted, job_out
-from softsig_service.api.routes.common import READ, WRITE, Limit, Offset, problem
+from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, WRITE, Limit, Offset, page, problem
 from softsig_service.api.schemas import (
     ExperimentIn,
     JobFiles,
@@ -31,7 +31,7 @@ from softsig_service.api.schemas import (
     ValidationIn,
     object_json,
 )
-from softsig_service.errors import HandNotFound, InvalidInput, NotFound, ServiceBusy
+from softsig_service.errors import HandNotFound, InvalidInput, NotAvailable, NotFound
 from softsig_service.objects import object_from_json
 from softsig_service.registry import repository as repo
 from softsig_service.services.jobs import list_files, media_type, resolve_file
@@ -60,7 +60,7 @@ def _check_trials(ctx: AppContext, n: int, what: str) -> None:
 
 def _require_kind(ctx: AppContext, kind: str) -> None:
     if kind not in ctx.jobs.kinds:
-        raise ServiceBusy(f"{kind} jobs are not available in this installation", field="kind", value=kind)
+        raise NotAvailable(f"{kind} jobs are not offered by this service", field="kind", value=kind)
 
 
 @router.post(
@@ -68,7 +68,11 @@ def _require_kind(ctx: AppContext, kind: str) -> None:
     status_code=202,
     response_model=JobOut,
     dependencies=[WriteAccess],
-    responses={503: problem("the job queue is full (Retry-After)"), **WRITE},
+    responses={
+        501: problem("this job kind is not offered"),
+        503: problem("the job queue is full (Retry-After)"),
+        **WRITE,
+    },
     summary="Validate a grasp in MuJoCo (a job)",
 )
 async def create_validation(ctx: Ctx, body: ValidationIn) -> JSONResponse:
@@ -94,7 +98,11 @@ async def create_validation(ctx: Ctx, body: ValidationIn) -> JSONResponse:
     status_code=202,
     response_model=JobOut,
     dependencies=[WriteAccess],
-    responses={503: problem("the job queue is full (Retry-After)"), **WRITE},
+    responses={
+        501: problem("this job kind is not offered"),
+        503: problem("the job queue is full (Retry-After)"),
+        **WRITE,
+    },
     summary="Run the reference experiment, Table I (a job)",
 )
 async def create_experiment(ctx: Ctx, body: ExperimentIn) -> JSONResponse:
@@ -117,7 +125,7 @@ def list_jobs(
         Literal["queued", "running", "succeeded", "failed", "cancelled", "timed_out"] | None,
         Query(description="only jobs in this status"),
     ] = None,
-    limit: Limit = 50,
+    limit: Limit = DEFAULT_LIMIT,
     offset: Offset = 0,
 ) -> dict[str, Any]:
     """Jobs, newest first."""
@@ -131,8 +139,8 @@ def get_job(ctx: Ctx, job_id: JobId) -> dict[str, Any]:
     return job_out(repo.get_job(ctx.registry, job_id))
 
 
-@router.delete(
-    "/jobs/{job_id}",
+@router.post(
+    "/jobs/{job_id}/cancel",
     status_code=202,
     response_model=JobOut,
     dependencies=[WriteAccess],
@@ -151,14 +159,14 @@ async def cancel_job(ctx: Ctx, job_id: JobId) -> dict[str, Any]:
     responses=READ,
     summary="List a job's result files",
 )
-def job_files(ctx: Ctx, job_id: JobId) -> dict[str, Any]:
-    """The files the job wrote (JSON, CSV, Markdown, PNG...), with sizes [bytes] and download URLs."""
+def job_files(ctx: Ctx, job_id: JobId, limit: Limit = DEFAULT_LIMIT, offset: Offset = 0) -> dict[str, Any]:
+    """The files the job wrote (JSON, CSV, Markdown, PNG...), by name, with sizes [bytes] and download URLs."""
     repo.get_job(ctx.registry, job_id)
     items = [
         {"name": name, "size": size, "media_type": media_type(name), "url": f"/v1/jobs/{job_id}/files/{name}"}
         for name, size in list_files(ctx.jobs.out_dir(job_id))
     ]
-    return {"items": items}
+    return page(items, limit, offset)
 
 
 @router.get(

@@ -17,12 +17,12 @@ from starlette.concurrency import run_in_threadpool
 
 from softsig_service.api.context import AppContext
 from softsig_service.api.deps import Ctx, ReadAccess, WriteAccess
-from softsig_service.api.routes.common import READ, WRITE, Limit, Offset, problem
+from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, WRITE, Limit, Offset, problem
 from softsig_service.api.schemas import HAND_NAME_PATTERN, PlanIn, PlanList, PlanOut, object_json
 from softsig_service.errors import HandNotFound, InvalidInput
 from softsig_service.registry import repository as repo
 from softsig_service.services.plan_image import render_plan_png
-from softsig_service.services.serialize import to_jsonable
+from softsig_service.services.serialize import to_jsonable, vectors_as_objects
 
 router = APIRouter(prefix="/v1", tags=["plans"])
 PlanId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="a stored plan's id")]
@@ -57,7 +57,7 @@ def make_plan(ctx: AppContext, body: PlanIn) -> dict[str, Any]:
     with ctx.plan_lock:
         plan = ctx.planner.plan(request)
     ctx.metrics.plan_seconds.labels(body.strategy).observe(plan.timing.get("total", 0.0))
-    data: dict[str, Any] = to_jsonable(plan.to_json_dict())
+    data: dict[str, Any] = vectors_as_objects(to_jsonable(plan.to_json_dict()))
     data["hand_revision"] = hand.revision
     if body.store:
         rec = repo.add_plan(
@@ -77,15 +77,17 @@ def _plan_out(rec: repo.PlanRecord) -> dict[str, Any]:
     status_code=201,
     response_model=PlanOut,
     dependencies=[WriteAccess],
-    responses=WRITE,
+    responses={200: {"model": PlanOut, "description": "the plan, not stored (store: false)"}, **WRITE},
     summary="Plan a top grasp (synchronous)",
 )
 def create_plan(ctx: Ctx, body: PlanIn, response: Response) -> dict[str, Any]:
-    """Plan a UR5 top grasp of an object with strategy S or C; 201 with the plan (``success`` may be false, with
-    ``reasons``) and, when stored, ``Location``."""
+    """Plan a UR5 top grasp of an object with strategy S or C; the plan (``success`` may be false, with
+    ``reasons``): 201 with ``Location`` when stored, 200 with ``store: false`` (nothing is created)."""
     data = make_plan(ctx, body)
     if data.get("id"):
         response.headers["Location"] = f"/v1/plans/{data['id']}"
+    else:
+        response.status_code = 200
     return data
 
 
@@ -93,7 +95,7 @@ def create_plan(ctx: Ctx, body: PlanIn, response: Response) -> dict[str, Any]:
 def list_plans(
     ctx: Ctx,
     hand: Annotated[str | None, Query(pattern=HAND_NAME_PATTERN, description="only plans of this hand")] = None,
-    limit: Limit = 50,
+    limit: Limit = DEFAULT_LIMIT,
     offset: Offset = 0,
 ) -> dict[str, Any]:
     """Stored plans, newest first."""

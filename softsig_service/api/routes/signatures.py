@@ -11,24 +11,27 @@ import hashlib
 from pathlib import PurePath
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Body, File, Form, Path, Query, Response, UploadFile
+from fastapi import APIRouter, File, Form, Path, Query, Response, UploadFile
+from fastapi.responses import JSONResponse
 from starlette.concurrency import run_in_threadpool
 
 from softsig_service.api.deps import Ctx, IfMatchOptional, ReadAccess, WriteAccess
 from softsig_service.api.job_responses import accepted, stiffness_signature_version
-from softsig_service.api.routes.common import READ, WRITE, Limit, Offset, problem
+from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, WRITE, Limit, Offset, problem
 from softsig_service.api.schemas import (
     CRITERION_DESCRIPTION,
     HAND_NAME_PATTERN,
     ClosureCriterion,
     ClosureSignatureIn,
+    CsMethod,
     JobOut,
-    SignatureIn,
     SignatureList,
     SignatureOut,
+    StiffnessSignatureIn,
 )
 from softsig_service.errors import InvalidTrajectory
 from softsig_service.registry import repository as repo
+from softsig_service.services.serialize import vectors_as_objects
 from softsig_service.services.tasks import closure_signature, markers_signature
 
 router = APIRouter(prefix="/v1", tags=["signatures"])
@@ -42,8 +45,9 @@ def signature_summary(rec: repo.SignatureRecord) -> dict[str, Any]:
         "hand": rec.hand,
         "version": rec.version,
         "kind": rec.kind,
-        "method": rec.method,
-        "criterion": rec.criterion,
+        "cs_method": rec.method if rec.kind == "closure" else None,
+        "cs_criterion": rec.criterion,
+        "object": rec.method if rec.kind == "stiffness" else None,
         "source": rec.source,
         "hand_revision": rec.hand_revision,
         "etag": rec.etag,
@@ -54,7 +58,7 @@ def signature_summary(rec: repo.SignatureRecord) -> dict[str, Any]:
 
 def signature_out(rec: repo.SignatureRecord) -> dict[str, Any]:
     """The JSON of :class:`SignatureOut`."""
-    return {**signature_summary(rec), "params": rec.params, "signature": rec.data}
+    return {**signature_summary(rec), "params": rec.params, "signature": vectors_as_objects(rec.data)}
 
 
 def _criterion_param(method: str, criterion: str) -> dict[str, str]:
@@ -69,46 +73,63 @@ def _created(response: Response, rec: repo.SignatureRecord) -> dict[str, Any]:
 
 
 @router.post(
-    "/hands/{hand}/signatures",
+    "/hands/{hand}/signatures/closure",
     status_code=201,
     response_model=SignatureOut,
     dependencies=[WriteAccess],
     responses={
         404: problem("unknown hand"),
-        202: {"model": JobOut, "description": "stiffness: accepted as a job (Location: /v1/jobs/{id})"},
         409: problem("the hand was replaced while the signature was computed"),
         412: problem("If-Match does not match the latest version's ETag"),
         **WRITE,
     },
-    summary="Compute a signature and store it as a new version",
+    summary="Compute the closure signature from a simulated closure and store it as a new version",
 )
-async def create_signature(
-    ctx: Ctx,
-    hand: HandPath,
-    response: Response,
-    if_match: IfMatchOptional,
-    body: Annotated[SignatureIn, Body()],
-) -> Any:
-    """``{"kind": "closure", "method": "ellipsoid"|"pca"|"mesh", "criterion": "absolute"|"relative"}``: simulate
-    the hand's free closure (in a worker process) and compute its closure signature (hand frame); ``criterion``
-    (ellipsoid only, default "absolute": deltas in metres) is stored in ``params``. ``{"kind": "stiffness",
-    "object": ...}``: grasp the object and compute the stiffness signature, a long computation: 202 with the job
-    (``Location: /v1/jobs/{id}``); the signature is stored as a new version when the job succeeds (its result
-    links to it). Closure: 201 with the stored version, ``Location`` and ``ETag``."""
+async def create_closure_signature(
+    ctx: Ctx, hand: HandPath, response: Response, if_match: IfMatchOptional, body: ClosureSignatureIn
+) -> dict[str, Any]:
+    """``{"cs_method": "ellipsoid"|"pca"|"mesh", "cs_criterion": "absolute"|"relative"}``: simulate the hand's
+    free closure (in a worker process) and compute its closure signature (hand frame); the criterion (ellipsoid
+    only, default "absolute": deltas in metres) is stored in ``params``. 201 with the stored version,
+    ``Location`` and ``ETag``."""
     record = await run_in_threadpool(ctx.hand, hand)
-    if isinstance(body, ClosureSignatureIn):
-        result = await ctx.pool.run(
-            closure_signature, record.manifest_path, ctx.settings.limits, body.method, body.criterion,
-            what="simulating the closure", field="method",
-        )  # fmt: skip
-        params = {"method": body.method, **_criterion_param(body.method, body.criterion), "closure": result["closure"]}
-        rec = await run_in_threadpool(
-            lambda: repo.add_signature(
-                ctx.registry, hand, kind="closure", method=body.method, source="simulation", data=result["signature"],
-                params=params, hand_revision=record.revision, if_match=if_match,
-            )
-        )  # fmt: skip
-        return _created(response, rec)
+    result = await ctx.pool.run(
+        closure_signature, record.manifest_path, ctx.settings.limits, body.cs_method, body.cs_criterion,
+        what="simulating the closure", field="cs_method",
+    )  # fmt: skip
+    params = {
+        "method": body.cs_method, **_criterion_param(body.cs_method, body.cs_criterion), "closure": result["closure"]
+    }  # fmt: skip
+    rec = await run_in_threadpool(
+        lambda: repo.add_signature(
+            ctx.registry, hand, kind="closure", method=body.cs_method, source="simulation", data=result["signature"],
+            params=params, hand_revision=record.revision, if_match=if_match,
+        )
+    )  # fmt: skip
+    return _created(response, rec)
+
+
+@router.post(
+    "/hands/{hand}/signatures/stiffness",
+    status_code=202,
+    response_model=JobOut,
+    dependencies=[WriteAccess],
+    responses={
+        404: problem("unknown hand"),
+        501: problem("stiffness signatures are not offered by this service"),
+        503: problem("the job queue is full (Retry-After)"),
+        **WRITE,
+    },
+    summary="Compute the stiffness signature (a job); stored as a new version when it succeeds",
+)
+async def create_stiffness_signature(
+    ctx: Ctx, hand: HandPath, if_match: IfMatchOptional, body: StiffnessSignatureIn
+) -> JSONResponse:
+    """``{"object": ...}``: grasp the object in MuJoCo and compute the 6x6 grasp stiffness and break forces, a long
+    computation: 202 with the job (``Location: /v1/jobs/{id}``); the signature is stored as the hand's next
+    version when the job succeeds (its result links to it). ``If-Match`` is checked when the version is
+    stored."""
+    record = await run_in_threadpool(ctx.hand, hand)
     job = await stiffness_signature_version(ctx, record, body, if_match)
     return accepted(job)
 
@@ -131,14 +152,14 @@ async def upload_markers(
     response: Response,
     if_match: IfMatchOptional,
     file: Annotated[UploadFile, File(description="CSV time,point,x,y,z [s, m, hand frame] or trajectory JSON")],
-    method: Annotated[Literal["ellipsoid", "pca", "mesh"], Form()] = "ellipsoid",
-    criterion: Annotated[ClosureCriterion, Form(description=CRITERION_DESCRIPTION)] = "absolute",
+    cs_method: Annotated[CsMethod, Form()] = "ellipsoid",
+    cs_criterion: Annotated[ClosureCriterion, Form(description=CRITERION_DESCRIPTION)] = "absolute",
     strict_points: Annotated[
         bool, Form(description="point names must be the hand's reference points (all of them)")
     ] = True,
 ) -> dict[str, Any]:
     """Compute the closure signature from tracked marker trajectories (hand frame [m]) and store it as a new
-    version; ``criterion`` (ellipsoid only, default "absolute") is stored in ``params``."""
+    version; ``cs_criterion`` (ellipsoid only, default "absolute") is stored in ``params``."""
     record = await run_in_threadpool(ctx.hand, hand)
     name = file.filename or ""
     suffix = PurePath(name).suffix.lower()
@@ -155,12 +176,12 @@ async def upload_markers(
         raise InvalidTrajectory("the marker file is not UTF-8 text", field="file", value=name) from None
     expected = [p.get("name") for p in record.info.get("reference_points", [])] if strict_points else None
     result = await ctx.pool.run(
-        markers_signature, text, fmt, method, expected, hand, criterion, what="computing the signature from markers",
-        field="file",
+        markers_signature, text, fmt, cs_method, expected, hand, cs_criterion,
+        what="computing the signature from markers", field="file",
     )  # fmt: skip
     params = {
-        "method": method,
-        **_criterion_param(method, criterion),
+        "method": cs_method,
+        **_criterion_param(cs_method, cs_criterion),
         "file": name,
         "sha256": hashlib.sha256(raw).hexdigest(),
         "strict_points": strict_points,
@@ -168,7 +189,7 @@ async def upload_markers(
     }
     rec = await run_in_threadpool(
         lambda: repo.add_signature(
-            ctx.registry, hand, kind="closure", method=method, source="markers", data=result["signature"],
+            ctx.registry, hand, kind="closure", method=cs_method, source="markers", data=result["signature"],
             params=params, hand_revision=record.revision, if_match=if_match,
         )
     )  # fmt: skip
@@ -182,7 +203,7 @@ async def upload_markers(
     responses=READ,
     summary="List a hand's signature versions",
 )
-def list_signatures(ctx: Ctx, hand: HandPath, kind: KindQuery = None, limit: Limit = 100,
+def list_signatures(ctx: Ctx, hand: HandPath, kind: KindQuery = None, limit: Limit = DEFAULT_LIMIT,
                     offset: Offset = 0) -> dict[str, Any]:  # fmt: skip
     """Versions, newest first (without the signature bodies)."""
     items, total = repo.list_signatures(ctx.registry, hand, kind=kind, limit=limit, offset=offset)
