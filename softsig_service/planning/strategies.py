@@ -1,4 +1,4 @@
-"""Top-grasp strategies as pure math: S (bounding-box alignment) and the alignment measures of both.
+"""Top-grasp strategies as pure math: S (alignment with the object's major axis) and the alignment measures of both.
 
 World frame = UR5 ``base_link`` (z up); hand frame per docs/design.md §3 (+z approach, +x across the palm). A top grasp
 has hand +z pointing down. Strategy C's optimisation lives in :mod:`softsig_service.planning.wrist_pose`.
@@ -30,11 +30,16 @@ def axis_angle_between_lines(u: NDArray[np.float64], v: NDArray[np.float64]) -> 
 def strategy_s_poses(
     object_center: NDArray[np.float64], major_axis: NDArray[np.float64], hand_center: NDArray[np.float64]
 ) -> list[NDArray[np.float64]]:
-    """Strategy S: hand +z down, hand +x along the object's major axis, hand centre over the object's centre.
+    """Strategy S: hand +z down, hand +x along the object's major axis, placement point over the object's centre.
 
-    ``hand_center`` [m] is a point of the hand frame (the centre of the open hand's bounding box) placed
-    vertically above ``object_center`` [m, world]; the flange height is left at the object's centre height
-    (the planner sets it by descending along the approach). Both yaws (the axis has no sign) are returned.
+    ``hand_center`` [m] is the placement point, a point of the hand frame placed vertically above
+    ``object_center`` [m, world]. The planner (:mod:`softsig_service.planning.planner`) passes
+    ``HandPlanningModel.placement_point("S", PlanRequest.placement)``: by default (``placement="open_centre"``)
+    the centre c_0 of the open hand's reference-point ellipsoid; with ``"grasp_centre"`` the centre c_T of the
+    closed hand's reference-point ellipsoid (strategy C puts the same point there, so S and C differ only in
+    yaw); with ``"previous"`` the centre of the open reference points' bounding box. The flange height is left
+    at the object's centre height (the planner sets it by descending along the approach). Both yaws (the axis
+    has no sign) are returned.
     """
     o1 = np.asarray(major_axis, dtype=float)
     yaw0 = math.atan2(o1[1], o1[0])

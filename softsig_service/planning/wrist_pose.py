@@ -5,13 +5,23 @@ position ``t = (x, y, z)`` [m], ``yaw`` about world z and small ``roll``/``pitch
 orientation is ``R = Rz(yaw) · Rx(pi + roll) · Ry(pitch)``: with roll = pitch = 0, hand +z points down (a top
 grasp) and hand +x keeps its heading ``yaw``.
 
+The hand point put over the object's centre is the *placement point* ``p_a`` [m, hand frame], passed as
+``cs_anchor``. The planner (:mod:`softsig_service.planning.planner`) passes
+``HandPlanningModel.placement_point("C", PlanRequest.placement)``: by default (``placement="open_centre"``) the
+centre c_0 of the open hand's reference-point ellipsoid (MVEE; the ellipsoid CS's anchor, whatever CS method is
+used); with ``"grasp_centre"`` the centre c_T of the closed hand's reference-point ellipsoid; with ``"previous"``
+the CS's own anchor (c_0 for the ellipsoid method; the centroid of the open reference points for pca, of the
+open hand's surface points for mesh). With ``"open_centre"`` and ``"grasp_centre"`` strategy S puts the same
+point there (docs/design.md §6).
+
 Cost (all terms dimensionless or scaled by a stated length):
 
 * alignment: ``sin^2`` of the angle between the horizontal projection of the closure signature axis
   ``R u`` and the object's closing axis ``a`` (an axis: both signs align);
-* centring: squared horizontal distance of the CS anchor ``t + R p_a`` from the object's centre, per
-  ``CENTRING_SCALE`` [m];
-* depth: squared height of the anchor above the object's centre, per ``DEPTH_SCALE`` [m];
+* centring: squared horizontal distance of the placement point ``t + R p_a`` from the object's centre, per
+  ``CENTRING_SCALE`` [m], weighted 1e-3;
+* depth: squared height of the placement point above the object's centre, per ``DEPTH_SCALE`` [m], weighted
+  1e-3;
 * tilt: ``roll^2 + pitch^2`` weighted by ``TILT_WEIGHT``.
 
 Constraints: every reference point of the open hand at least ``margin`` [m] above the table plane; roll and
@@ -44,7 +54,7 @@ SHOULDER = (0.0, 0.0, 0.089159)
 REACH = (0.20, 0.85)
 """Inner and outer radius [m] of the flange's reachable shell around the shoulder."""
 CENTRING_TOLERANCE = 0.002
-"""[m] a solution whose CS anchor misses the object's centre by more than this is not a grasp (out of reach)."""
+"""[m] a solution whose placement point misses the object's centre by more than this is not a grasp (unreachable)."""
 MIN_HORIZONTAL_CS = 0.2
 """Below this horizontal norm of the CS axis (hand pointing down) the alignment is impossible."""
 
@@ -62,7 +72,7 @@ class WristPoseSolution:
     alignment_error: float
     """Angle [rad] between the CS's horizontal projection and the closing axis (as lines)."""
     centring_error: float
-    """Horizontal distance [m] of the CS anchor from the object's centre."""
+    """Horizontal distance [m] of the placement point ``t + R p_a`` from the object's centre."""
     clearance: float
     """Lowest open-hand reference point's height above the table [m]."""
     iterations: int
@@ -151,7 +161,10 @@ def solve_wrist_pose(
 
     ``cs_axis`` (unit) and ``cs_anchor`` [m] and ``points_open`` (N, 3) [m] are in the hand frame;
     ``object_center`` [m] and the horizontal ``closing_axis`` (2 or 3 components, unit after projection) are in
-    the world frame.
+    the world frame. Despite its name, ``cs_anchor`` is the placement point p_a that is put over
+    ``object_center``, not necessarily the CS's anchor: the planner passes
+    ``HandPlanningModel.placement_point("C", placement)`` (default c_0, the open hand's reference-point
+    ellipsoid centre; see the module docstring).
     """
     u = np.asarray(cs_axis, dtype=float).reshape(3)
     pa = np.asarray(cs_anchor, dtype=float).reshape(3)

@@ -1,6 +1,15 @@
 """The stiffness signature of a hand (docs/design.md §5): find a power grasp of an object
-in MuJoCo, compute its 6x6 grasp stiffness at the wrist and, optionally, its break forces by the pull test
-(:mod:`softsig_service.simulation.pullout`). Frames: the hand frame; stiffness [N/m], [N·m/rad]; forces [N].
+in MuJoCo, compute its 6x6 grasp stiffness and, optionally, its break forces by the pull test
+(:mod:`softsig_service.simulation.pullout`).
+
+The grasp stiffness ``K`` is not taken at the wrist: it is expressed in the hand frame (the mount body's frame,
+origin at the flange, docs/design.md §3) with the **object's centre** as the reference point (its body origin,
+which is its centre of mass, in the settled grasp; ``parameters["reference_point"] == "object centre"``), see
+:mod:`softsig_service.simulation.grasp_matrices` and :mod:`softsig_service.signatures.stiffness`. Rows and columns
+are linear then angular: a small object displacement ``u = (dx [m], dtheta [rad])`` about that centre gives the
+restoring wrench ``-K u`` (force [N], torque [N·m] about the centre), so the blocks are in [N/m], [N] and
+[N·m/rad]; the principal stiffnesses depend on that reference point. Pull directions and break forces [N] are in
+the hand frame too; the pull force acts on the object's centre.
 """
 
 from __future__ import annotations

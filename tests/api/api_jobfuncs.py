@@ -19,6 +19,10 @@ def count(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     for i in range(n):
         time.sleep(float(params.get("dt", 0.05)))
         ctx.progress((i + 1) / n, f"step {i + 1} of {n}")
+        if params.get("gate") and i == n // 2:  # wait, half-way, until the test has seen the progress
+            gate = ctx.out_dir / "gate"
+            while not gate.exists():
+                time.sleep(0.02)
     (ctx.out_dir / "report.md").write_text(f"# count\n\n| n | total |\n|---|---|\n| {n} | {n * (n + 1) // 2} |\n")
     (ctx.out_dir / "data.csv").write_text("i,value\n" + "".join(f"{i},{i * i}\n" for i in range(n)))
     (ctx.out_dir / "sub").mkdir(exist_ok=True)

@@ -52,7 +52,7 @@ def test_pairs_follow_the_srdf_and_exclusions(ur5: UR5) -> None:
     world = CollisionWorld(ur5, HAND)
     pairs = world.pair_names
     self_arm = [p for p in pairs if p[2] == "self" and not p[0].startswith("hand:") and not p[1].startswith("hand:")]
-    assert len(self_arm) == 17  # 27 -> 17 after the SRDF (HANDS.md)
+    assert len(self_arm) == 17  # 27 -> 17 after the SRDF (example-robot-data srdf/ur5.srdf)
     table = {p[0] for p in pairs if p[2] == "table"}
     assert "base_link" not in table and "shoulder_link" not in table
     assert {"upper_arm_link", "wrist_3_link", "hand:palm", "hand:finger_a"} <= table

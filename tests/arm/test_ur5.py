@@ -13,7 +13,7 @@ from softsig_service.config import Settings, default_settings
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.transforms import make_transform, rot_x, rot_z
 
-# HANDS.md, UR5: standard DH parameters [m]
+# UR5: standard DH parameters [m] (Universal Robots, UR5 DH table)
 D1, A2, A3, D4, D5, D6 = 0.089159, 0.425, 0.39225, 0.10915, 0.09465, 0.0823
 
 
@@ -68,7 +68,7 @@ def test_robots_dir_override_comes_from_the_settings(monkeypatch: pytest.MonkeyP
 
 def test_fk_at_zero_matches_hands_md(ur5: UR5) -> None:
     T = ur5.fk(np.zeros(6))
-    # HANDS.md: tool0 at (0.81725, 0.19145, -0.00549) in base_link; the model gives z = d1 - d5 = -0.005491
+    # docs/design.md §8: tool0 at (0.81725, 0.19145, -0.00549) in base_link; the model gives z = d1 - d5 = -0.005491
     assert np.allclose(T[:3, 3], [0.81725, 0.19145, -0.00549], atol=2e-6)
     assert math.isclose(T[2, 3], D1 - D5, abs_tol=1e-9)
     assert np.allclose(T[:3, 2], [0.0, 1.0, 0.0], atol=1e-9)  # the flange faces +y at q = 0

@@ -1,4 +1,4 @@
-"""The Pisa/IIT SoftHand model against the published description (HANDS.md; hands/pisa_iit_softhand/README.md).
+"""The Pisa/IIT SoftHand model against its published description (hands/pisa_iit_softhand/README.md).
 
 The reference is built here, independently of the MJCF: a Pinocchio model assembled from the published table
 (finger base positions and rpy in the palm frame, joint axes, 9 mm knuckle, rolling joints as hinge pairs 13 mm
