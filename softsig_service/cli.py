@@ -84,7 +84,18 @@ def hands_show(
                 f"  model: {info['model_file']} ({info['model_format']})",
             ]
             lines.append(f"  bodies {info['bodies']}, joints {len(info['joints'])}, actuators {info['actuators']}")
-            lines.append(f"  mass {info['mass']:.3f} kg, mount body '{info['mount']}' = hand frame")
+            frame = info["hand_frame"]
+
+            def vec(v: list[float]) -> str:
+                return "(" + ", ".join(f"{x:+.3f}" for x in v) + ")"
+
+            lines.append(f"  mass {info['mass']:.3f} kg, mount body '{info['mount']}'")
+            lines.append(f"  hand frame in '{frame['relative_to']}': origin {vec(frame['origin'])} m")
+            lines += [f"    +{a} {vec(frame[a])}" for a in ("x", "y", "z")]
+            if info["expanded_urdf"] is not None:
+                lines.append(f"  expanded URDF sha256 {info['expanded_urdf']['sha256']}")
+            if info["mimics"]:
+                lines.append(f"  mimic couplings: {len(info['mimics'])}")
             lines.append("  reference points: " + ", ".join(p["name"] for p in info["reference_points"]))
             lines.append(f"  closure: {info['closure']}")
             return "\n".join(lines)

@@ -115,7 +115,7 @@ class SynergyClosure(_Strict):
     kv: float = Field(0.05, ge=0.0)
     force_limit: float | None = Field(None, gt=0.0, description="kinematic servo force limit [N] or [N·m]")
     stiffness: float = Field(0.1, gt=0.0, description="adaptive: joint stiffness [N·m/rad], uniform")
-    damping: float = Field(0.01, ge=0.0, description="joint damping [N·m·s/rad]")
+    damping: float = Field(0.005, ge=0.0, description="joint damping [N·m·s/rad]")
     armature: float = Field(1e-4, ge=0.0, description="joint armature [kg·m²]")
 
     @model_validator(mode="after")

@@ -21,6 +21,10 @@ import mujoco
 from softsig_service.errors import FrameNotFound, InvalidHandModel
 
 EQUALITY_PREFIX = "softsig_mimic_"
+MIMIC_ARMATURE = 1e-4
+"""Armature [kg·m² or kg] given to every joint of a mimic coupling that has less (URDF has no armature). An
+approximate value, the built-in SoftHand's: without it a light virtual synergy link (a few grams) driving the
+fingers through the equalities is unstable at a 2 ms step."""
 
 
 @dataclass(frozen=True)
@@ -90,16 +94,46 @@ def strip_mimics(urdf_xml: str) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
-def add_mimic_equalities(spec: mujoco.MjSpec, couplings: dict[str, Coupling], skip: set[str]) -> None:
-    """One joint equality per coupling (except the joints in ``skip``, which a synergy closure drives)."""
+def add_mimic_equalities(spec: mujoco.MjSpec, couplings: dict[str, Coupling], skip: set[str], timestep: float) -> None:
+    """One joint equality per coupling (except the joints in ``skip``, which a synergy closure drives).
+
+    The equalities are stiffer than MuJoCo's default (time constant ``2 * timestep`` [s], the smallest MuJoCo
+    advises, instead of 0.02 s; impedance 0.95..0.99) so that a coupling holds within about 1e-3 rad while the
+    hand moves."""
     for c in couplings.values():
         if c.joint in skip:
             continue
         if spec.joint(c.joint) is None or spec.joint(c.root) is None:
             continue  # a fixed joint (no MuJoCo joint): nothing moves, nothing to couple
+        for name in (c.joint, c.root):
+            joint = spec.joint(name)
+            joint.armature = max(float(joint.armature), MIMIC_ARMATURE)
         eq = spec.add_equality(name=f"{EQUALITY_PREFIX}{c.joint}")
         eq.type = mujoco.mjtEq.mjEQ_JOINT
         eq.objtype = mujoco.mjtObj.mjOBJ_JOINT
         eq.name1 = c.joint
         eq.name2 = c.root
         eq.data[:5] = [c.offset, c.multiplier, 0.0, 0.0, 0.0]
+        eq.solref = [2.0 * timestep, 1.0]
+        eq.solimp = [0.95, 0.99, 0.001, 0.5, 2.0]
+
+
+def mimic_posture(
+    model: mujoco.MjModel, couplings: dict[str, Coupling], posture: tuple[tuple[int, float], ...]
+) -> tuple[tuple[int, float], ...]:
+    """``posture`` (qpos address, value) completed with every mimic joint at ``multiplier * root + offset``
+    (clipped to its limits), the root at its posture value or at 0: the open hand satisfies its couplings."""
+    values = dict(posture)
+    out = list(posture)
+    for c in couplings.values():
+        j, r = (
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, c.joint),
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, c.root),
+        )
+        if j < 0 or r < 0 or int(model.jnt_qposadr[j]) in values:
+            continue
+        q = c.multiplier * values.get(int(model.jnt_qposadr[r]), 0.0) + c.offset
+        if model.jnt_limited[j]:
+            q = min(max(q, float(model.jnt_range[j][0])), float(model.jnt_range[j][1]))
+        out.append((int(model.jnt_qposadr[j]), q))
+    return tuple(out)

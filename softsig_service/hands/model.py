@@ -25,7 +25,13 @@ from softsig_service.config import ModelLimits, Settings
 from softsig_service.errors import FrameNotFound, HandNotFound, InvalidHandModel, ModelTooLarge, UnsafePath
 from softsig_service.hands.assets import check_mjcf_paths, load_urdf_source
 from softsig_service.hands.manifest import HandManifest, PostureClosure, SynergyClosure, load_manifest
-from softsig_service.hands.mimic import Coupling, add_mimic_equalities, mimic_couplings, strip_mimics
+from softsig_service.hands.mimic import (
+    Coupling,
+    add_mimic_equalities,
+    mimic_couplings,
+    mimic_posture,
+    strip_mimics,
+)
 from softsig_service.hands.mount_pose import apply_mount_pose, mount_transform
 from softsig_service.hands.synergy import add_synergy, synergy_controls, synergy_couplings
 from softsig_service.hands.xacro_expand import ExpandedUrdf, expand_xacro
@@ -185,7 +191,9 @@ def compile_hand(
     closure = manifest.closure
     mimics = mimic_couplings(src.urdf_xml) if src.urdf_xml is not None else {}
     coupled = synergy_couplings(closure, mimics) if isinstance(closure, SynergyClosure) else []
-    add_mimic_equalities(spec, mimics, skip={c.joint for c in coupled})
+    add_mimic_equalities(spec, mimics, skip={c.joint for c in coupled}, timestep=manifest.simulation.timestep)
+    if src.urdf_xml is not None:
+        _exclude_mount_children(spec, manifest.mount)
     if edit is not None:
         edit(spec)
     sim = manifest.simulation
@@ -221,11 +229,12 @@ def compile_hand(
             field="mount",
             value=manifest.mount,
         )
-    points = _resolve_points(manifest, model)
+    points = _resolve_points(manifest, model, mount, T_MH)
     if isinstance(closure, SynergyClosure):
         actuators, open_ctrl, closed_ctrl, posture = synergy_controls(closure, coupled, model)
     else:
         actuators, open_ctrl, closed_ctrl, posture = _closure_controls(manifest, model)
+    posture = mimic_posture(model, mimics, posture)
     return HandModel(
         manifest=manifest,
         folder=folder,
@@ -241,6 +250,18 @@ def compile_hand(
         synergy=tuple(coupled),
         expanded=src.expanded,
     )
+
+
+def _exclude_mount_children(spec: mujoco.MjSpec, mount: str) -> None:
+    """URDF links next to each other do not collide (as ROS tools treat adjacent links). MuJoCo skips
+    parent-child pairs except where the parent is welded to the world, as the mount body is: exclude those."""
+    body = spec.body(mount)
+    if body is None:
+        return
+    for child in body.bodies:
+        exclude = spec.add_exclude()
+        exclude.bodyname1 = mount
+        exclude.bodyname2 = child.name
 
 
 def _names(model: mujoco.MjModel, kind: Literal["body", "site", "actuator", "joint"]) -> list[str]:
@@ -275,7 +296,10 @@ def _check_size(model: mujoco.MjModel, limits: ModelLimits) -> None:
             raise ModelTooLarge(f"model has more {what} than the limit of {limit}", field="model", value=value)
 
 
-def _resolve_points(manifest: HandManifest, model: mujoco.MjModel) -> tuple[PointSpec, ...]:
+def _resolve_points(
+    manifest: HandManifest, model: mujoco.MjModel, mount: int, T_MH: NDArray[np.float64]
+) -> tuple[PointSpec, ...]:
+    """The reference points; a ``body`` point on the mount body keeps its offset in the description's frame."""
     if manifest.reference_points is None:
         sites = [n for n in _names(model, "site") if n.endswith("_tip")]
         specs = [PointSpec(n, "site", model.site(n).id, (0.0, 0.0, 0.0)) for n in sites]
@@ -300,7 +324,11 @@ def _resolve_points(manifest: HandManifest, model: mujoco.MjModel) -> tuple[Poin
         else:
             assert p.body is not None
             bid = _lookup(model, "body", p.body, f"reference_points[{k}].body")
-            out.append(PointSpec(p.name, "body", bid, p.offset))
+            offset = p.offset
+            if bid == mount:  # the mount body's frame is now the hand frame: p_H = R_MH^T (p_M - o_MH)
+                local = T_MH[:3, :3].T @ (np.asarray(p.offset) - T_MH[:3, 3])
+                offset = (float(local[0]), float(local[1]), float(local[2]))
+            out.append(PointSpec(p.name, "body", bid, offset))
     return tuple(out)
 
 
