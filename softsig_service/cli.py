@@ -23,7 +23,9 @@ app = typer.Typer(
     no_args_is_help=True,
     pretty_exceptions_enable=False,
 )
-hands_app = typer.Typer(help="The hand library: list, show, close and render hands.", no_args_is_help=True)
+hands_app = typer.Typer(
+    help="The hand library: list, show, close and render hands; add one to a service.", no_args_is_help=True
+)
 app.add_typer(hands_app, name="hands")
 signature_app = typer.Typer(help="Closure and stiffness signatures of a hand.", no_args_is_help=True)
 app.add_typer(signature_app, name="signature")
@@ -138,6 +140,51 @@ def hands_render(
         image = render_open_closed(load_hand(hand, Settings()), width=size, height=size)
         save_png(image, out)
         typer.echo(f"wrote {out} ({image.shape[1]}x{image.shape[0]})")
+
+
+@hands_app.command("add")
+def hands_add(
+    path: Annotated[Path, typer.Argument(help="a hand's folder (with hand.toml) or a .zip/.tar.gz of it")],
+    url: Annotated[
+        str, typer.Option("--url", envvar="SOFTSIG_URL", help="the softsig service (default SOFTSIG_URL)")
+    ] = "http://127.0.0.1:8000",
+    api_key: Annotated[
+        str | None, typer.Option("--api-key", envvar="SOFTSIG_API_KEY", help="X-API-Key (default SOFTSIG_API_KEY)")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+) -> None:
+    """Register a hand with a softsig service in one call: a folder is packed as .tar.gz, an archive sent as is.
+
+    The service checks every file (paths, links, sizes), expands a .urdf.xacro in a limited process and loads
+    the hand; a problem is printed with its field and the command exits 2.
+    """
+    import httpx
+
+    from softsig_service.api.client import ApiError, SoftsigClient
+    from softsig_service.errors import InvalidInput
+    from softsig_service.hands.archive import is_archive, pack_folder
+
+    with _errors():
+        limits = Settings().limits
+        if path.is_dir():
+            upload = (f"{path.resolve().name}.tar.gz", pack_folder(path, limits))
+        elif path.is_file() and is_archive(path.name):
+            upload = (path.name, path.read_bytes())
+        else:
+            raise InvalidInput("give a hand's folder or a .zip/.tar.gz archive", field="path", value=str(path))
+        try:
+            with SoftsigClient(url, api_key=api_key) as api:
+                hand = api.register_hand_archive(upload)
+        except ApiError as exc:
+            problem = exc.problem
+            typer.echo(f"error: {exc.status} {problem.detail} | field: {problem.field} | got: {problem.value!r}",
+                       err=True)  # fmt: skip
+            raise typer.Exit(2) from None
+        except httpx.HTTPError as exc:
+            typer.echo(f"error: cannot reach the softsig service at {url}: {exc}", err=True)
+            raise typer.Exit(2) from None
+        data = hand.model_dump(mode="json")
+        _emit(data, as_json, lambda: f"registered {hand.name} (revision {hand.revision}, {hand.etag}) at {url}")
 
 
 @signature_app.command("closure")

@@ -23,14 +23,14 @@ from softsig_service.hands.synergy import synergy_targets
 
 # the description's mimic tags, resolved to the synergy joint (f*_dist mimic f*_prox: a chain)
 RESOLVED = {
-    "f1_prox": (1.6, 0.0), "f1_dist": (1.2, 0.0), "f2_prox": (1.2, 0.0), "f2_dist": (0.9, 0.0),
-    "thumb_prox": (1.0, 0.1), "thumb_dist": (0.5, 0.05),
+    "f1_prox": (0.4, 0.0), "f1_dist": (0.3, 0.0), "f2_prox": (0.3, 0.0), "f2_dist": (0.225, 0.0),
+    "thumb_prox": (0.3, 0.1), "thumb_dist": (0.15, 0.05),
 }  # fmt: skip
 
 POSTURE = """
 kind = "posture"
 open = { synergy_joint = 0.0 }
-closed = { synergy_joint = 0.8 }  # f1_prox = 1.6 s stays below its 1.4 rad limit
+closed = { synergy_joint = 0.8 }  # f1_prox = 0.4 s stays below its 0.35 rad limit
 kp = 5.0
 kv = 0.05
 """
@@ -136,15 +136,15 @@ def test_kinematic_synergy_follows_multiplier_times_s(tmp_path: Path) -> None:
         for joint, target in synergy_targets(hand.synergy, hand.model, s).items():
             worst = max(worst, abs(q[joint][k] - target))
     assert math.degrees(worst) < 2.0
-    # f1_prox = 1.6 s reaches its 1.4 rad limit at s = 0.875 and stays clipped there
-    assert q["f1_prox"][-1] == pytest.approx(1.4, abs=math.radians(0.5))
+    # f1_prox = 0.4 s reaches its 0.35 rad limit at s = 0.875 and stays clipped there
+    assert q["f1_prox"][-1] == pytest.approx(0.35, abs=math.radians(0.5))
 
 
 def _obstacle(spec: mujoco.MjSpec) -> None:
-    """A fixed block in front of finger f1 (hand frame: f1 at x = -0.02 closes toward -y)."""
+    """A fixed block in front of finger f1's tip (hand frame: f1 at x = -0.02 closes toward -y)."""
     geom = spec.worldbody.add_geom(name="block", type=mujoco.mjtGeom.mjGEOM_BOX)
-    geom.size = [0.008, 0.004, 0.02]
-    geom.pos = [-0.02, 0.0, 0.085]
+    geom.size = [0.008, 0.003, 0.012]
+    geom.pos = [-0.02, 0.012, 0.115]
 
 
 def test_adaptive_synergy_free_closure_and_a_blocked_finger(tmp_path: Path) -> None:
@@ -156,7 +156,7 @@ def test_adaptive_synergy_free_closure_and_a_blocked_finger(tmp_path: Path) -> N
         assert q_free[joint][-1] == pytest.approx(target, abs=math.radians(1.0)), joint
     blocked = compile_hand(load_manifest(toml), toml.parent, Settings().limits, edit=_obstacle)
     _, q_blocked = _joint_history(blocked)
-    assert q_blocked["f1_prox"][-1] < q_free["f1_prox"][-1] - 0.3  # the block stops f1 early
+    assert q_blocked["f1_dist"][-1] < q_free["f1_dist"][-1] - 0.1  # the block stops f1 early
     for joint in ("f2_prox", "f2_dist", "thumb_prox", "thumb_dist"):  # the others close as in free space
         assert q_blocked[joint][-1] == pytest.approx(q_free[joint][-1], abs=math.radians(0.5)), joint
 

@@ -57,14 +57,8 @@ def test_expansion_is_cached_by_content(tmp_path: Path, monkeypatch: pytest.Monk
 
 
 # a real escape from xacro's expression sandbox (plain xacro runs it): reach os.system through object's subclasses
-COMMAND = """
-  <xacro:property name="subs" value="${python.vars(python.type)['__subclasses__'](python.type(0).mro()[1])}"/>
-  <xacro:property name="init"
-    value="${python.vars([c for c in subs if 'os._wrap_close' in python.repr(c)][0])['__init__']}"/>
-  <xacro:property name="gd" value="${python.vars(python.type(init))['__globals__']}"/>
-  <xacro:property name="g" value="${python.vars(python.type(gd))['__get__'](gd, init)}"/>
-  <link name="${g['system']('touch MARKER')}"/>
-"""
+COMMAND = (Path(__file__).parent / "data" / "evil" / "command.xacro").read_text()
+COMMAND = COMMAND[COMMAND.index("<xacro:property") : COMMAND.index("</robot>")]
 
 
 @pytest.mark.parametrize(
