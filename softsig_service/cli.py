@@ -89,7 +89,7 @@ def hands_show(
             frame = info["hand_frame"]
 
             def vec(v: list[float]) -> str:
-                return "(" + ", ".join(f"{x:+.3f}" for x in v) + ")"
+                return "(" + ", ".join(f"{round(x, 3) + 0.0:+.3f}" for x in v) + ")"
 
             lines.append(f"  mass {info['mass']:.3f} kg, mount body '{info['mount']}'")
             lines.append(f"  hand frame in '{frame['relative_to']}': origin {vec(frame['origin'])} m")

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import subprocess
 import sys
 from collections.abc import Mapping
@@ -100,7 +101,7 @@ def _write_cache(folder: Path, exp: ExpandedUrdf) -> None:
     try:
         (folder / CACHE_DIR).mkdir(exist_ok=True)
         data = {"xml": exp.xml, "sha256": exp.sha256, "files": list(exp.files)}
-        tmp = folder / CACHE_DIR / f"{exp.key}.tmp"
+        tmp = folder / CACHE_DIR / f"{exp.key}.{os.getpid()}.tmp"  # one per process: concurrent loads race
         tmp.write_text(json.dumps(data), encoding="utf-8")
         tmp.replace(folder / CACHE_DIR / f"{exp.key}.json")
     except OSError:

@@ -1,8 +1,8 @@
 """``/v1/hands``: register (multipart upload), list, get, replace and delete hands.
 
 An upload is a ``hand.toml`` manifest (field ``manifest``), the model file it names (field ``model``: MJCF
-``.xml`` or URDF ``.urdf``, stored at the manifest's ``model`` path) and any other files the model refers to
-(field ``assets``, repeated; each part's *filename* is its path relative to the hand's folder, e.g.
+``.xml``, URDF ``.urdf`` or xacro ``.urdf.xacro``, stored at the manifest's ``model`` path) and any other files
+the model refers to (field ``assets``, repeated; each part's *filename* is its path relative to the hand's folder, e.g.
 ``meshes/finger.stl``). The files are written into a fresh folder under ``<data_dir>/hands/<name>/`` and the hand
 is loaded from there by the hand library in a worker process, with every rule of the library: relative paths that
 stay inside the folder (symlinks included), the size limits of ``SOFTSIG_LIMIT_*``, the compiled model's limits.
@@ -41,6 +41,7 @@ from softsig_service.registry import repository as repo
 router = APIRouter(prefix="/v1", tags=["hands"])
 HandPath = Annotated[str, Path(pattern=HAND_NAME_PATTERN, description="the hand's name")]
 _CHUNK = 1 << 20
+_MODEL_FILE = "the MJCF (.xml), URDF (.urdf) or xacro (.xacro) file the manifest names"
 
 
 def hand_summary(record: repo.HandRecord) -> dict[str, Any]:
@@ -182,7 +183,7 @@ async def register_hand(
     ctx: Ctx,
     response: Response,
     manifest: Annotated[UploadFile, File(description="hand.toml")],
-    model: Annotated[UploadFile, File(description="the MJCF (.xml) or URDF (.urdf) file the manifest names")],
+    model: Annotated[UploadFile, File(description=_MODEL_FILE)],
     assets: Annotated[
         list[UploadFile] | None, File(description="other files (meshes, includes); filename = relative path")
     ] = None,
@@ -271,7 +272,7 @@ async def replace_hand(
     response: Response,
     if_match: IfMatchRequired,
     manifest: Annotated[UploadFile, File(description="hand.toml (its name must be the hand's)")],
-    model: Annotated[UploadFile, File(description="the MJCF (.xml) or URDF (.urdf) file the manifest names")],
+    model: Annotated[UploadFile, File(description=_MODEL_FILE)],
     assets: Annotated[list[UploadFile] | None, File(description="other files; filename = relative path")] = None,
 ) -> dict[str, Any]:
     """Replace the files of an uploaded hand; its revision (and ETag) changes, its signatures stay (each records
