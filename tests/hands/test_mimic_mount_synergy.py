@@ -179,3 +179,25 @@ def test_synergy_from_manifest_multipliers_and_bad_joints(tmp_path: Path) -> Non
     with pytest.raises(InvalidManifest) as info3:
         load_manifest(mini_hand(tmp_path / "d", _synergy("adaptive", extra)))
     assert info3.value.field == "closure" and "exactly one" in str(info3.value)
+
+
+def test_mount_pose_of_an_mjcf_hand(tmp_path: Path) -> None:
+    import shutil
+
+    folder = tmp_path / "sdm"
+    shutil.copytree(Settings().hands_dir / "sdm_hand", folder)
+    toml = folder / "hand.toml"
+    toml.write_text(
+        toml.read_text().replace(
+            'mount = "mount"\n',
+            'mount = "mount"\nmount_pose = { xyz = [0.0, 0.0, 0.01], rpy = [0.0, 0.0, 1.5707963267948966] }\n',
+        )
+    )
+    posed = load_hand(str(toml), Settings())
+    bare = load_hand("sdm_hand", Settings())
+    R = rpy_to_matrix(0.0, 0.0, math.pi / 2)
+    # sites (the fingertips and the wrist) follow the frame: p_H = R^T (p_M - xyz)
+    np.testing.assert_allclose(_tip_points(posed), (_tip_points(bare) - [0.0, 0.0, 0.01]) @ R, atol=1e-9)
+    closed_posed = simulate_closure(posed, surface_points=0).positions[-1]
+    closed_bare = simulate_closure(bare, surface_points=0).positions[-1]  # gravity off: the closure is the same
+    np.testing.assert_allclose(closed_posed, (closed_bare - [0.0, 0.0, 0.01]) @ R, atol=1e-6)
