@@ -53,6 +53,9 @@ _BLOCKED_EVENTS = {
 }
 
 
+_WRITE_FLAGS = os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND
+
+
 class Forbidden(Exception):
     """What the description tried and was refused: ``kind`` and the offending ``value``."""
 
@@ -94,7 +97,8 @@ class _Guard:
             inside = self._inside(path)
             if inside is None:
                 self.refuse("read", "the description reads a file outside the hand's folder", os.fsdecode(path))
-            if isinstance(mode, str) and any(c in mode for c in "wax+"):
+            flags = args[2] if len(args) > 2 and isinstance(args[2], int) else 0
+            if (isinstance(mode, str) and any(c in mode for c in "wax+")) or flags & _WRITE_FLAGS:
                 self.refuse("write", "the description writes a file", os.fsdecode(path))
             if inside is not None and inside != self.folder:
                 self.read.add(inside.relative_to(self.folder).as_posix())
