@@ -128,6 +128,7 @@ BASE = [_file(rel, data) for rel, data in _files("bad_hand").items()]
         ("h.tar.gz", [*BASE, _file("/etc/cron.d/x", b"x")], 422, "relative"),
         ("h.tar.gz", [*BASE, _link("meshes/link.stl", "/etc/passwd", tarfile.SYMTYPE)], 422, "links"),
         ("h.tar.gz", [*BASE, _link("meshes/hard.stl", "hand.toml", tarfile.LNKTYPE)], 422, "links"),
+        ("h.tar.gz", [*BASE, _link("dev/zero", "", tarfile.CHRTYPE)], 422, "only files and folders"),
         ("h.tar.gz", [*BASE, _file(".softsig-cache/x.json", b"{}")], 422, "cache"),
         ("h.tar.gz", [*BASE, *[_file(f"extra/{k}.txt", b"x") for k in range(20)]], 413, "members"),
         ("h.tar.gz", [*BASE, _file("big.bin", b"\0" * 200_001)], 413, "larger than 200000 bytes"),
@@ -140,6 +141,20 @@ def test_archive_rejections(small_api: TestClient, name: str, members: list, sta
     body = assert_problem(_post(small_api, name, _tar(members)), status, "archive")
     assert words in body["detail"], body
     assert small_api.get("/v1/hands/bad_hand").status_code == 404
+
+
+def test_zip_with_a_symlink_member_is_refused(small_api: TestClient) -> None:
+    import stat
+
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as z:
+        for rel, data in _files("link_hand").items():
+            z.writestr(rel, data)
+        info = zipfile.ZipInfo("meshes/secret.stl")
+        info.external_attr = (stat.S_IFLNK | 0o777) << 16
+        z.writestr(info, "/etc/shadow")
+    body = assert_problem(_post(small_api, "link.zip", out.getvalue()), 422, "archive")
+    assert "links" in body["detail"] and body["value"] == "meshes/secret.stl"
 
 
 def test_zip_bomb_stops_at_the_limit(small_api: TestClient) -> None:
