@@ -28,6 +28,11 @@ class ModelLimits(BaseSettings):
     max_bodies: int = Field(200, gt=0, description="most bodies in a compiled hand model")
     max_dofs: int = Field(120, gt=0, description="most degrees of freedom in a compiled hand model")
     max_mesh_vertices: int = Field(500_000, gt=0, description="most mesh vertices in a compiled hand model")
+    max_archive_members: int = Field(250, gt=0, description="most files (and folders) in an uploaded hand archive")
+    xacro_seconds: float = Field(20.0, gt=0.0, description="wall-time limit of one xacro expansion [s]")
+    xacro_memory_bytes: int = Field(
+        1_000_000_000, gt=50_000_000, description="address-space limit of the xacro expansion process [bytes]"
+    )
 
 
 class Settings(BaseSettings):

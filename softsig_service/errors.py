@@ -56,6 +56,15 @@ class ModelTooLarge(InvalidHandModel):
     """A hand model or asset beyond the documented size limits."""
 
 
+class UnsafeDescription(InvalidHandModel):
+    """A hand description (a xacro) that tries to read outside its folder, read the environment, write a file,
+    open a connection or run a command while it is expanded."""
+
+
+class ExpansionLimit(InvalidHandModel):
+    """A xacro expansion that does not end within its time, memory or recursion limit."""
+
+
 class FrameNotFound(SoftsigError):
     """A named body, site, joint or actuator that the model does not have."""
 

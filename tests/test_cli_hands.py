@@ -72,3 +72,29 @@ def test_render_without_a_usable_backend_fails_with_a_clear_message(tmp_path: Pa
     assert res.returncode == 2
     assert "OpenGL backend" in res.stderr and "Traceback" not in res.stderr
     assert not (tmp_path / "x.png").exists()
+
+
+MINI_HAND = Path(__file__).resolve().parent / "hands" / "data" / "mini_hand" / "hand.toml"
+
+
+def test_hands_show_prints_the_hand_frame_axes() -> None:
+    res = run("hands", "show", str(MINI_HAND))
+    assert res.returncode == 0, res.stderr
+    # mount_pose rpy (pi/2, 0, pi/2): hand +x along base_link +y, hand +z (the approach) along base_link +x
+    assert "hand frame in 'base_link': origin (+0.000, +0.000, +0.000) m" in res.stdout
+    assert "+x (+0.000, +1.000, +0.000)" in res.stdout and "+z (+1.000, +0.000, +0.000)" in res.stdout
+    assert "expanded URDF sha256" in res.stdout and "mimic couplings: 6" in res.stdout
+
+
+def test_render_draws_the_hand_frame_axes(tmp_path: Path) -> None:
+    import matplotlib.image
+
+    out = tmp_path / "mini.png"
+    res = run("hands", "render", str(MINI_HAND), "--out", str(out), "--size", "160")
+    if res.returncode == 2 and "OpenGL backend" in res.stderr:
+        pytest.skip("no OpenGL backend on this machine: " + res.stderr.strip())
+    assert res.returncode == 0, res.stderr
+    rgb = matplotlib.image.imread(out)[..., :3]
+    red = (rgb[..., 0] > 0.6) & (rgb[..., 1] < 0.25) & (rgb[..., 2] < 0.25)
+    blue = (rgb[..., 2] > 0.6) & (rgb[..., 0] < 0.35) & (rgb[..., 1] < 0.5)
+    assert red.sum() > 20 and blue.sum() > 20  # the x (red) and z (blue) arrows in both views

@@ -136,6 +136,11 @@ class SoftsigClient:
         r = self.request("POST", "/v1/hands", files=self._hand_files(manifest, model, assets))
         return HandOut.model_validate(r.json())
 
+    def register_hand_archive(self, archive: FileSpec) -> HandOut:
+        """Upload a hand's folder as one archive (a path or (name, bytes) of a .zip or .tar.gz)."""
+        r = self.request("POST", "/v1/hands/archive", files=[("archive", _file(archive))])
+        return HandOut.model_validate(r.json())
+
     def replace_hand(
         self, name: str, etag: str, manifest: FileSpec, model: FileSpec, assets: Sequence[tuple[str, FileSpec]] = ()
     ) -> HandOut:

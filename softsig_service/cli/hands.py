@@ -1,4 +1,4 @@
-"""``softsig hands``: list, show, close and render the hands of the library."""
+"""``softsig hands``: list, show, close and render the hands of the library, and add one to a service."""
 
 from __future__ import annotations
 
@@ -12,7 +12,9 @@ from softsig_service.cli.options import errors_to_exit as _errors
 from softsig_service.cli.options import write_json
 from softsig_service.config import Settings
 
-hands_app = typer.Typer(help="The hand library: list, show, close and render hands.", no_args_is_help=True)
+hands_app = typer.Typer(
+    help="The hand library: list, show, close and render hands; add one to a service.", no_args_is_help=True
+)
 
 
 @hands_app.command("list")
@@ -65,7 +67,18 @@ def hands_show(
                 f"  model: {info['model_file']} ({info['model_format']})",
             ]
             lines.append(f"  bodies {info['bodies']}, joints {len(info['joints'])}, actuators {info['actuators']}")
-            lines.append(f"  mass {info['mass']:.3f} kg, mount body '{info['mount']}' = hand frame")
+            frame = info["hand_frame"]
+
+            def vec(v: list[float]) -> str:
+                return "(" + ", ".join(f"{round(x, 3) + 0.0:+.3f}" for x in v) + ")"
+
+            lines.append(f"  mass {info['mass']:.3f} kg, mount body '{info['mount']}'")
+            lines.append(f"  hand frame in '{frame['relative_to']}': origin {vec(frame['origin'])} m")
+            lines += [f"    +{a} {vec(frame[a])}" for a in ("x", "y", "z")]
+            if info["expanded_urdf"] is not None:
+                lines.append(f"  expanded URDF sha256 {info['expanded_urdf']['sha256']}")
+            if info["mimics"]:
+                lines.append(f"  mimic couplings: {len(info['mimics'])}")
             lines.append("  reference points: " + ", ".join(p["name"] for p in info["reference_points"]))
             lines.append(f"  closure: {info['closure']}")
             return "\n".join(lines)
@@ -108,3 +121,48 @@ def hands_render(
         image = render_open_closed(load_hand(hand, Settings()), width=size, height=size)
         save_png(image, out)
         typer.echo(f"wrote {out} ({image.shape[1]}x{image.shape[0]})")
+
+
+@hands_app.command("add")
+def hands_add(
+    path: Annotated[Path, typer.Argument(help="a hand's folder (with hand.toml) or a .zip/.tar.gz of it")],
+    url: Annotated[
+        str, typer.Option("--url", envvar="SOFTSIG_URL", help="the softsig service (default SOFTSIG_URL)")
+    ] = "http://127.0.0.1:8000",
+    api_key: Annotated[
+        str | None, typer.Option("--api-key", envvar="SOFTSIG_API_KEY", help="X-API-Key (default SOFTSIG_API_KEY)")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+) -> None:
+    """Register a hand with a softsig service in one call: a folder is packed as .tar.gz, an archive sent as is.
+
+    The service checks every file (paths, links, sizes), expands a .urdf.xacro in a limited process and loads
+    the hand; a problem is printed with its field and the command exits 2.
+    """
+    import httpx
+
+    from softsig_service.api.client import ApiError, SoftsigClient
+    from softsig_service.errors import InvalidInput
+    from softsig_service.hands.archive import is_archive, pack_folder
+
+    with _errors():
+        limits = Settings().limits
+        if path.is_dir():
+            upload = (f"{path.resolve().name}.tar.gz", pack_folder(path, limits))
+        elif path.is_file() and is_archive(path.name):
+            upload = (path.name, path.read_bytes())
+        else:
+            raise InvalidInput("give a hand's folder or a .zip/.tar.gz archive", field="path", value=str(path))
+        try:
+            with SoftsigClient(url, api_key=api_key) as api:
+                hand = api.register_hand_archive(upload)
+        except ApiError as exc:
+            problem = exc.problem
+            typer.echo(f"error: {exc.status} {problem.detail} | field: {problem.field} | got: {problem.value!r}",
+                       err=True)  # fmt: skip
+            raise typer.Exit(2) from None
+        except httpx.HTTPError as exc:
+            typer.echo(f"error: cannot reach the softsig service at {url}: {exc}", err=True)
+            raise typer.Exit(2) from None
+        data = hand.model_dump(mode="json")
+        _emit(data, as_json, lambda: f"registered {hand.name} (revision {hand.revision}, {hand.etag}) at {url}")

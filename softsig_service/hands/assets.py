@@ -90,9 +90,13 @@ def _resolve_package(folder: Path, ref: str, field: str) -> Path:
     )
 
 
-def load_urdf_source(path: Path, limits: ModelLimits, hand_root: Path | None = None) -> ModelSource:
+def load_urdf_source(
+    path: Path, limits: ModelLimits, hand_root: Path | None = None, text: str | None = None
+) -> ModelSource:
     """Read a URDF and every collision mesh it names, ready for MuJoCo, without touching the file on disk.
 
+    ``text``, when given, is the URDF itself (a xacro's expansion) and ``path`` only locates it: relative mesh
+    paths resolve against ``path``'s folder.
     ``hand_root`` (default: the URDF's folder) is the hand's folder: ``package://`` references resolve inside
     it and no file may lie outside it; plain relative mesh paths resolve against the URDF's own folder.
     ``<visual>`` elements are dropped (MuJoCo simulates collision geometry; visual formats such as COLLADA
@@ -102,7 +106,11 @@ def load_urdf_source(path: Path, limits: ModelLimits, hand_root: Path | None = N
     folder = (hand_root or path.parent).resolve()
     if not path.resolve().is_relative_to(folder):
         raise UnsafePath("the URDF must lie inside the hand's folder", field="model", value=str(path))
-    text = read_model_text(path, limits)
+    if text is None:
+        text = read_model_text(path, limits)
+    elif len(text.encode()) > limits.max_model_bytes:
+        raise ModelTooLarge(f"expanded URDF larger than {limits.max_model_bytes} bytes", field="model",
+                            value=len(text.encode()))  # fmt: skip
     root = _parse(text, "model")
     if root.tag != "robot":
         raise InvalidHandModel("a URDF's root element must be <robot>", field="model", value=root.tag)

@@ -1,8 +1,9 @@
 """The hand manifest ``hand.toml``: its schema and loader.
 
-A manifest names the model file (MJCF or URDF, relative to the manifest's folder), the mount body whose frame
-is the hand frame (docs/design.md §3: origin at the flange, +z = approach, +x across the palm), the reference points
-tracked through a closure, the closure command and the simulation settings. Every bad value raises
+A manifest names the model file (MJCF, URDF or a ``.urdf.xacro`` with its ``xacro_args``, relative to the
+manifest's folder), the mount body and optionally the hand frame's pose in it (``mount_pose``; without it the
+mount body's frame is the hand frame; docs/design.md §3: origin at the flange, +z = approach, +x across the palm), the
+reference points tracked through a closure, the closure command and the simulation settings. Every bad value raises
 :class:`~softsig_service.errors.InvalidManifest` naming the field (a dotted path) and, where they are a closed
 set, the valid choices.
 """
@@ -19,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from softsig_service.errors import InvalidManifest
 
 NAME_PATTERN = r"^[a-z][a-z0-9_\-]{0,63}$"
-MODEL_SUFFIXES = (".xml", ".urdf")
+MODEL_SUFFIXES = (".xml", ".urdf", ".xacro")
 
 
 class _Strict(BaseModel):
@@ -82,7 +83,76 @@ class PostureClosure(_Strict):
         return self
 
 
-Closure = Annotated[ActuatorClosure | PostureClosure, Field(discriminator="kind")]
+class SynergyClosure(_Strict):
+    """Closure along one synergy: a scalar ``s`` ramped from ``open`` to ``closed`` (within [0, 1]) drives every
+    coupled joint as ``q_j = multiplier_j * s + offset_j`` [rad] or [m], clipped to the joint's limits.
+
+    The coupled joints and their multipliers come from ``multipliers`` (with optional ``offsets``), or from the
+    URDF ``<mimic>`` tags of ``synergy_joint``: that joint (multiplier 1, offset 0) and every joint whose chain of
+    mimics ends at it (their mimic equalities are replaced by this closure). ``realisation``:
+
+    * ``"kinematic"``: a position servo on each coupled joint (gain ``kp`` [N·m/rad or N/m], damping ``kv``,
+      optional ``force_limit``) with the target ``multiplier * s + offset``: a position-controlled hand.
+    * ``"adaptive"``: one fixed tendon of length ``sum_j multiplier_j q_j`` (the multipliers are its moment arms)
+      pulled by a force source of ``stiffness * s`` [N·m], every coupled joint a spring of ``stiffness``
+      [N·m/rad] about ``offset_j``; in free space each joint settles at ``multiplier_j * s + offset_j`` and a
+      blocked joint leaves the others where they would be in free space (the Pisa/IIT SoftHand's transmission).
+
+    ``damping`` [N·m·s/rad] and ``armature`` [kg·m²] are set on every coupled joint (approximate values that keep
+    light URDF links stable at a 2 ms step).
+    """
+
+    kind: Literal["synergy"]
+    realisation: Literal["kinematic", "adaptive"] = "adaptive"
+    synergy_joint: str | None = Field(None, min_length=1)
+    multipliers: dict[str, float] | None = Field(None, min_length=1)
+    offsets: dict[str, float] = Field(default_factory=dict)
+    open: float = Field(0.0, ge=0.0, le=1.0)
+    closed: float = Field(1.0, ge=0.0, le=1.0)
+    duration: float = Field(1.0, gt=0.0, le=30.0)
+    settle: float = Field(0.5, ge=0.0, le=30.0)
+    kp: float = Field(5.0, gt=0.0)
+    kv: float = Field(0.05, ge=0.0)
+    force_limit: float | None = Field(None, gt=0.0, description="kinematic servo force limit [N] or [N·m]")
+    stiffness: float = Field(0.1, gt=0.0, description="adaptive: joint stiffness [N·m/rad], uniform")
+    damping: float = Field(0.005, ge=0.0, description="joint damping [N·m·s/rad]")
+    armature: float = Field(1e-4, ge=0.0, description="joint armature [kg·m²]")
+
+    @model_validator(mode="after")
+    def _one_source(self) -> SynergyClosure:
+        if (self.synergy_joint is None) == (self.multipliers is None):
+            raise ValueError("give exactly one of 'synergy_joint' (multipliers from its mimic tags) or 'multipliers'")
+        if self.synergy_joint is not None and self.offsets:
+            raise ValueError("'offsets' go with 'multipliers'; with 'synergy_joint' they come from the mimic tags")
+        extra = sorted(set(self.offsets) - set(self.multipliers or {}))
+        if extra:
+            raise ValueError(f"offsets name joints without a multiplier: {extra}")
+        if self.open == self.closed:
+            raise ValueError("'open' and 'closed' must differ")
+        return self
+
+
+Closure = Annotated[ActuatorClosure | PostureClosure | SynergyClosure, Field(discriminator="kind")]
+
+
+class MountPose(_Strict):
+    """The hand frame's pose in the mount body's frame: ``xyz`` [m] and ``rpy`` [rad] (URDF roll, pitch, yaw:
+    ``R = Rz(yaw) Ry(pitch) Rx(roll)``) or ``quaternion`` ``{x, y, z, w}`` (normalised on load)."""
+
+    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] | None = None
+    quaternion: dict[str, float] | None = None
+
+    @model_validator(mode="after")
+    def _one_orientation(self) -> MountPose:
+        if self.rpy is not None and self.quaternion is not None:
+            raise ValueError("give 'rpy' or 'quaternion', not both")
+        if self.quaternion is not None:
+            if set(self.quaternion) != {"x", "y", "z", "w"}:
+                raise ValueError("a quaternion needs x, y, z and w")
+            if sum(v * v for v in self.quaternion.values()) < 1e-12:
+                raise ValueError("the quaternion must not be zero")
+        return self
 
 
 class SimulationSettings(_Strict):
@@ -113,7 +183,9 @@ class HandManifest(_Strict):
     kind: Literal["underactuated", "soft", "fully_actuated"] = "underactuated"
     model: str
     scene: str | None = None
-    mount: str = Field(min_length=1, description="body whose frame is the hand frame (mounted at UR5 tool0)")
+    mount: str = Field(min_length=1, description="body the hand frame is fixed to (mounted at UR5 tool0)")
+    mount_pose: MountPose | None = None
+    xacro_args: dict[str, str | bool | int | float] = Field(default_factory=dict)
     reference_points: list[ReferencePoint] | None = None
     closure: Closure
     simulation: SimulationSettings = Field(default_factory=SimulationSettings)
@@ -141,10 +213,22 @@ class HandManifest(_Strict):
             raise ValueError("at least 4 reference points are needed for a closure signature")
         return value
 
+    @model_validator(mode="after")
+    def _xacro_args_need_xacro(self) -> HandManifest:
+        if self.xacro_args and self.model_format != "xacro":
+            raise ValueError("'xacro_args' apply to a .xacro model only")
+        return self
+
     @property
-    def model_format(self) -> Literal["mjcf", "urdf"]:
-        """``"urdf"`` for a ``.urdf`` model file, else ``"mjcf"``."""
-        return "urdf" if self.model.lower().endswith(".urdf") else "mjcf"
+    def model_format(self) -> Literal["mjcf", "urdf", "xacro"]:
+        """``"urdf"`` for a ``.urdf`` model file, ``"xacro"`` for a ``.xacro`` one (expanded to URDF), else
+        ``"mjcf"``."""
+        name = self.model.lower()
+        return "urdf" if name.endswith(".urdf") else "xacro" if name.endswith(".xacro") else "mjcf"
+
+    def xacro_mappings(self) -> dict[str, str]:
+        """``xacro_args`` as the strings xacro reads (booleans as ``true``/``false``)."""
+        return {k: (str(v).lower() if isinstance(v, bool) else str(v)) for k, v in self.xacro_args.items()}
 
 
 def _loc_to_field(loc: tuple[int | str, ...]) -> str:
@@ -152,7 +236,7 @@ def _loc_to_field(loc: tuple[int | str, ...]) -> str:
     for part in loc:
         if isinstance(part, int):
             out += f"[{part}]"
-        elif part in ("actuator", "posture") and out.endswith("closure"):
+        elif part in ("actuator", "posture", "synergy") and out.endswith("closure"):
             continue  # discriminated-union tag, not a field of the document
         else:
             out += ("." if out else "") + str(part)
@@ -191,14 +275,15 @@ def _known_fields(parent: tuple[int | str, ...]) -> list[str] | None:
         "reference_points": ReferencePoint,
         "simulation": SimulationSettings,
         "physical": PhysicalParameters,
+        "mount_pose": MountPose,
     }
     names = [p for p in parent if isinstance(p, str)]
     if not names:
         return sorted(model.model_fields)
     if names[0] == "closure":
         kind = names[1] if len(names) > 1 else "actuator"
-        cls: type[BaseModel] = PostureClosure if kind == "posture" else ActuatorClosure
-        return sorted(cls.model_fields)
+        kinds: dict[str, type[BaseModel]] = {"posture": PostureClosure, "synergy": SynergyClosure}
+        return sorted(kinds.get(kind, ActuatorClosure).model_fields)
     if names[0] in sub:
         return sorted(sub[names[0]].model_fields)
     return None

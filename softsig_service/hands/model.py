@@ -1,8 +1,11 @@
 """Load a hand (built-in name or a user's ``hand.toml``) into a compiled MuJoCo model with resolved frames.
 
 The compiled model holds the hand alone with its ``mount`` body welded to the world, so the hand frame is the
-world frame of this model at rest (the mount body's frame; docs/design.md §3). For a posture closure (fully actuated
-hands, URDF hands) a position servo is added to each joint the posture names. Models are cached per manifest
+world frame of this model at rest (the mount body's frame, moved by the manifest's ``mount_pose`` when it has one;
+docs/design.md §3). A ``.xacro`` model is expanded first (:mod:`softsig_service.hands.xacro_expand`); a URDF's
+``<mimic>`` tags become joint equalities (:mod:`softsig_service.hands.mimic`). For a posture closure (fully actuated
+hands, URDF hands) a position servo is added to each joint the posture names; a synergy closure adds its
+realisation (:mod:`softsig_service.hands.synergy`). Models are cached per manifest
 file and modification time: a request passes numbers, not files.
 """
 
@@ -10,7 +13,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
@@ -21,7 +24,17 @@ from numpy.typing import NDArray
 from softsig_service.config import ModelLimits, Settings, default_settings
 from softsig_service.errors import FrameNotFound, HandNotFound, InvalidHandModel, ModelTooLarge, UnsafePath
 from softsig_service.hands.assets import check_mjcf_paths, load_urdf_source
-from softsig_service.hands.manifest import HandManifest, PostureClosure, load_manifest
+from softsig_service.hands.manifest import HandManifest, PostureClosure, SynergyClosure, load_manifest
+from softsig_service.hands.mimic import (
+    Coupling,
+    add_mimic_equalities,
+    mimic_couplings,
+    mimic_posture,
+    strip_mimics,
+)
+from softsig_service.hands.mount_pose import apply_mount_pose, mount_transform
+from softsig_service.hands.synergy import add_synergy, synergy_controls, synergy_couplings
+from softsig_service.hands.xacro_expand import ExpandedUrdf, expand_xacro
 
 _INTEGRATORS = {
     "Euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -57,7 +70,15 @@ class HandModel:
     closure_closed: NDArray[np.float64]
     """Open and closed control values for ``closure_actuators``."""
     posture_qpos: tuple[tuple[int, float], ...]
-    """For posture closures: (qpos address, open value) set before the closure starts."""
+    """For posture and synergy closures: (qpos address, open value) set before the closure starts."""
+    hand_frame: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
+    """``T_MH`` (4x4): the hand frame in the description's mount-body frame (``mount_pose``; [m])."""
+    mimics: tuple[Coupling, ...] = ()
+    """The URDF's mimic couplings, resolved to their root joints."""
+    synergy: tuple[Coupling, ...] = ()
+    """For a synergy closure: the joints s drives (``q = multiplier * s + offset``)."""
+    expanded: ExpandedUrdf | None = None
+    """For a xacro model: the expanded URDF (its SHA-256 is stored with the hand)."""
 
     @property
     def name(self) -> str:
@@ -115,22 +136,42 @@ def _load_cached(path: str, _mtime_ns: int, limits: ModelLimits) -> HandModel:
     return compile_hand(manifest, manifest_path.parent, limits)
 
 
-def hand_spec(manifest: HandManifest, folder: Path, limits: ModelLimits) -> mujoco.MjSpec:
-    """A fresh ``MjSpec`` of the hand's model file (checked paths and sizes), without softsig's additions."""
+@dataclass(frozen=True)
+class SpecSource:
+    """A fresh ``MjSpec`` of a hand's model file, and for URDF/xacro the URDF text (mimic tags) and expansion."""
+
+    spec: mujoco.MjSpec
+    urdf_xml: str | None = None
+    expanded: ExpandedUrdf | None = None
+
+
+def load_spec(manifest: HandManifest, folder: Path, limits: ModelLimits) -> SpecSource:
+    """The hand's model file as an ``MjSpec`` (checked paths and sizes), without softsig's additions."""
     model_path = (folder / manifest.model).resolve()
     if Path(manifest.model).is_absolute() or not model_path.is_relative_to(folder.resolve()):
         raise UnsafePath("the model file must lie inside the hand's folder", field="model", value=manifest.model)
-    if manifest.model_format == "urdf":
-        src = load_urdf_source(model_path, limits, hand_root=folder)
+    if manifest.model_format in ("urdf", "xacro"):
+        expanded = None
+        if manifest.model_format == "xacro":
+            if not model_path.is_file():
+                raise InvalidHandModel("model file not found in the hand's folder", field="model", value=manifest.model)
+            expanded = expand_xacro(model_path, folder, manifest.xacro_mappings(), limits)
+        src = load_urdf_source(model_path, limits, hand_root=folder, text=expanded.xml if expanded else None)
         try:
-            return mujoco.MjSpec.from_string(src.xml, assets=src.assets)
+            spec = mujoco.MjSpec.from_string(strip_mimics(src.xml), assets=src.assets)
         except ValueError as exc:
             raise InvalidHandModel(f"MuJoCo cannot parse the URDF: {exc}", field="model") from None
+        return SpecSource(spec, src.xml, expanded)
     check_mjcf_paths(model_path, limits)
     try:
-        return mujoco.MjSpec.from_file(str(model_path))
+        return SpecSource(mujoco.MjSpec.from_file(str(model_path)))
     except ValueError as exc:
         raise InvalidHandModel(f"MuJoCo cannot parse the MJCF: {exc}", field="model") from None
+
+
+def hand_spec(manifest: HandManifest, folder: Path, limits: ModelLimits) -> mujoco.MjSpec:
+    """A fresh ``MjSpec`` of the hand's model file (checked paths and sizes), without softsig's additions."""
+    return load_spec(manifest, folder, limits).spec
 
 
 def compile_hand(
@@ -143,13 +184,23 @@ def compile_hand(
 
     ``edit`` may add to the spec before compiling (an obstacle, an object); the result is not cached.
     """
-    spec = hand_spec(manifest, folder, limits)
+    src = load_spec(manifest, folder, limits)
+    spec = src.spec
+    T_MH = mount_transform(manifest.mount_pose)
+    apply_mount_pose(spec, manifest.mount, T_MH)
+    closure = manifest.closure
+    mimics = mimic_couplings(src.urdf_xml) if src.urdf_xml is not None else {}
+    coupled = synergy_couplings(closure, mimics) if isinstance(closure, SynergyClosure) else []
+    add_mimic_equalities(spec, mimics, skip={c.joint for c in coupled}, timestep=manifest.simulation.timestep)
+    if src.urdf_xml is not None:
+        _exclude_mount_children(spec, manifest.mount)
     if edit is not None:
         edit(spec)
     sim = manifest.simulation
     spec.option.timestep = sim.timestep
     spec.option.integrator = _INTEGRATORS[sim.integrator]
-    closure = manifest.closure
+    if isinstance(closure, SynergyClosure):
+        add_synergy(spec, closure, coupled)
     if isinstance(closure, PostureClosure):
         joint_names = {j.name for j in spec.joints}
         for k, joint in enumerate(closure.open):
@@ -178,8 +229,12 @@ def compile_hand(
             field="mount",
             value=manifest.mount,
         )
-    points = _resolve_points(manifest, model)
-    actuators, open_ctrl, closed_ctrl, posture = _closure_controls(manifest, model)
+    points = _resolve_points(manifest, model, mount, T_MH)
+    if isinstance(closure, SynergyClosure):
+        actuators, open_ctrl, closed_ctrl, posture = synergy_controls(closure, coupled, model)
+    else:
+        actuators, open_ctrl, closed_ctrl, posture = _closure_controls(manifest, model)
+    posture = mimic_posture(model, mimics, posture)
     return HandModel(
         manifest=manifest,
         folder=folder,
@@ -190,7 +245,23 @@ def compile_hand(
         closure_open=open_ctrl,
         closure_closed=closed_ctrl,
         posture_qpos=posture,
+        hand_frame=T_MH,
+        mimics=tuple(mimics.values()),
+        synergy=tuple(coupled),
+        expanded=src.expanded,
     )
+
+
+def _exclude_mount_children(spec: mujoco.MjSpec, mount: str) -> None:
+    """URDF links next to each other do not collide (as ROS tools treat adjacent links). MuJoCo skips
+    parent-child pairs except where the parent is welded to the world, as the mount body is: exclude those."""
+    body = spec.body(mount)
+    if body is None:
+        return
+    for child in body.bodies:
+        exclude = spec.add_exclude()
+        exclude.bodyname1 = mount
+        exclude.bodyname2 = child.name
 
 
 def _names(model: mujoco.MjModel, kind: Literal["body", "site", "actuator", "joint"]) -> list[str]:
@@ -225,7 +296,10 @@ def _check_size(model: mujoco.MjModel, limits: ModelLimits) -> None:
             raise ModelTooLarge(f"model has more {what} than the limit of {limit}", field="model", value=value)
 
 
-def _resolve_points(manifest: HandManifest, model: mujoco.MjModel) -> tuple[PointSpec, ...]:
+def _resolve_points(
+    manifest: HandManifest, model: mujoco.MjModel, mount: int, T_MH: NDArray[np.float64]
+) -> tuple[PointSpec, ...]:
+    """The reference points; a ``body`` point on the mount body keeps its offset in the description's frame."""
     if manifest.reference_points is None:
         sites = [n for n in _names(model, "site") if n.endswith("_tip")]
         specs = [PointSpec(n, "site", model.site(n).id, (0.0, 0.0, 0.0)) for n in sites]
@@ -250,7 +324,11 @@ def _resolve_points(manifest: HandManifest, model: mujoco.MjModel) -> tuple[Poin
         else:
             assert p.body is not None
             bid = _lookup(model, "body", p.body, f"reference_points[{k}].body")
-            out.append(PointSpec(p.name, "body", bid, p.offset))
+            offset = p.offset
+            if bid == mount:  # the mount body's frame is now the hand frame: p_H = R_MH^T (p_M - o_MH)
+                local = T_MH[:3, :3].T @ (np.asarray(p.offset) - T_MH[:3, 3])
+                offset = (float(local[0]), float(local[1]), float(local[2]))
+            out.append(PointSpec(p.name, "body", bid, offset))
     return tuple(out)
 
 
@@ -258,6 +336,7 @@ def _closure_controls(
     manifest: HandManifest, model: mujoco.MjModel
 ) -> tuple[tuple[int, ...], NDArray[np.float64], NDArray[np.float64], tuple[tuple[int, float], ...]]:
     closure = manifest.closure
+    assert not isinstance(closure, SynergyClosure)
     if isinstance(closure, PostureClosure):
         ids, lo, hi, posture = [], [], [], []
         for k, joint in enumerate(closure.open):

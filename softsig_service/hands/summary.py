@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from softsig_service.hands.model import HandModel
+from softsig_service.hands.mount_pose import hand_frame_axes
 from softsig_service.hands.trajectory import ClosureTrajectory
 
 
@@ -23,7 +24,9 @@ def fingertip_spread(positions: NDArray[np.float64], names: tuple[str, ...]) -> 
 
 
 def hand_info(hand: HandModel) -> dict[str, Any]:
-    """Static facts of a hand: manifest fields, model statistics and its reference points."""
+    """Static facts of a hand: manifest fields, model statistics, its reference points, the hand frame in the
+    mount body's frame (``hand_frame``: origin [m] and unit axes), the URDF's mimic couplings, the joints a
+    synergy closure drives, and for a xacro model the SHA-256 of its expanded URDF."""
     m = hand.model
     man = hand.manifest
     joint_types = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
@@ -52,6 +55,18 @@ def hand_info(hand: HandModel) -> dict[str, Any]:
             }
             for p in hand.points
         ],
+        "hand_frame": hand_frame_axes(hand.hand_frame, man.mount),
+        "mimics": [
+            {"joint": c.joint, "root": c.root, "multiplier": c.multiplier, "offset": c.offset} for c in hand.mimics
+        ],
+        "synergy": [{"joint": c.joint, "multiplier": c.multiplier, "offset": c.offset} for c in hand.synergy],
+        "expanded_urdf": None
+        if hand.expanded is None
+        else {
+            "sha256": hand.expanded.sha256,
+            "bytes": len(hand.expanded.xml.encode()),
+            "files": list(hand.expanded.files),
+        },
         "closure": man.closure.model_dump(),
         "simulation": man.simulation.model_dump(),
         "physical": man.physical.model_dump(),

@@ -100,7 +100,7 @@ def test_upload_checks_of_the_hand_library(api: TestClient) -> None:
     files = gripper_files("escaper")
     files["hand.toml"] = files["hand.toml"].replace(b'kind = "posture"', b'kind = "magic"')
     body = assert_problem(api.post("/v1/hands", files=upload(files), headers=AUTH), 422, "manifest.closure.kind")
-    assert body["choices"] == ["actuator", "posture"]
+    assert body["choices"] == ["actuator", "posture", "synergy"]
     # not TOML at all
     files["hand.toml"] = b"name = [unclosed"
     assert_problem(api.post("/v1/hands", files=upload(files), headers=AUTH), 422, "manifest")

@@ -1,12 +1,18 @@
 """``/v1/hands``: register (multipart upload), list, get, replace and delete hands.
 
 An upload is a ``hand.toml`` manifest (field ``manifest``), the model file it names (field ``model``: MJCF
-``.xml`` or URDF ``.urdf``, stored at the manifest's ``model`` path) and any other files the model refers to
-(field ``assets``, repeated; each part's *filename* is its path relative to the hand's folder, e.g.
+``.xml``, URDF ``.urdf`` or xacro ``.urdf.xacro``, stored at the manifest's ``model`` path) and any other files
+the model refers to (field ``assets``, repeated; each part's *filename* is its path relative to the hand's folder, e.g.
 ``meshes/finger.stl``). The files are written into a fresh folder under ``<data_dir>/hands/<name>/`` and the hand
 is loaded from there by the hand library in a worker process, with every rule of the library: relative paths that
 stay inside the folder (symlinks included), the size limits of ``SOFTSIG_LIMIT_*``, the compiled model's limits.
 A hand that fails to load is not registered and its folder is removed.
+
+``POST /v1/hands/archive`` registers a hand from one ``.zip``/``.tar.gz`` (field ``archive``) holding its folder,
+read with the rules of :mod:`softsig_service.hands.archive` (every member's path checked, no links, limits on the
+member count and the unpacked size). A ``.urdf.xacro`` model is expanded in a limited child process; a
+description that reads outside its folder, reads the environment or runs a command gets 422
+``unsafe-description``, one that does not end within its limits 422 ``expansion-limit``.
 """
 
 from __future__ import annotations
@@ -25,14 +31,17 @@ from softsig_service.api.deps import Ctx, IfMatchRequired, ReadAccess, WriteAcce
 from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, WRITE, Limit, Offset, page, problem
 from softsig_service.api.schemas import HAND_NAME_PATTERN, HandList, HandOut
 from softsig_service.errors import Conflict, InvalidHandModel, InvalidManifest, ModelTooLarge, UnsafePath
+from softsig_service.hands.archive import read_archive
 from softsig_service.hands.assets import check_relative_path
 from softsig_service.hands.manifest import HandManifest, manifest_from_dict
+from softsig_service.hands.xacro_expand import CACHE_DIR
 from softsig_service.registry import repository as repo
 from softsig_service.services.tasks import inspect_hand
 
 router = APIRouter(prefix="/v1", tags=["hands"])
 HandPath = Annotated[str, Path(pattern=HAND_NAME_PATTERN, description="the hand's name")]
 _CHUNK = 1 << 20
+_MODEL_FILE = "the MJCF (.xml), URDF (.urdf) or xacro (.xacro) file the manifest names"
 
 
 def hand_summary(record: repo.HandRecord) -> dict[str, Any]:
@@ -87,6 +96,8 @@ def _relative(ref: str, field: str) -> str:
     parts = [p for p in rel.parts if p not in ("", ".")]
     if not parts:
         raise UnsafePath("a file path is empty", field=field, value=ref)
+    if parts[0] == CACHE_DIR:
+        raise UnsafePath(f"{CACHE_DIR}/ is softsig's own cache and cannot be uploaded", field=field, value=ref)
     return "/".join(parts)
 
 
@@ -120,6 +131,12 @@ async def _write_upload(ctx: Any, manifest: UploadFile, model: UploadFile, asset
         total += len(files[rel])
         if total > limits.max_total_bytes:
             raise ModelTooLarge(f"the hand's files exceed {limits.max_total_bytes} bytes", field=field, value=total)
+    folder, listing = await _store(ctx, man, files)
+    return man, folder, listing
+
+
+async def _store(ctx: Any, man: HandManifest, files: dict[str, bytes]) -> tuple[FsPath, list[dict[str, Any]]]:
+    """Write checked files into a fresh folder of the hand; returns the folder and the file list."""
     folder = ctx.hands_dir / man.name / uuid.uuid4().hex
 
     def write() -> list[dict[str, Any]]:
@@ -139,7 +156,7 @@ async def _write_upload(ctx: Any, manifest: UploadFile, model: UploadFile, asset
     except BaseException:
         shutil.rmtree(folder, ignore_errors=True)
         raise
-    return man, folder, listing
+    return folder, listing
 
 
 def _remove(folder: str | FsPath | None) -> None:
@@ -153,25 +170,52 @@ def list_hands(ctx: Ctx, limit: Limit = DEFAULT_LIMIT, offset: Offset = 0) -> di
     return page([hand_summary(r) for r in repo.list_hands(ctx.registry)], limit, offset)
 
 
-@router.post(
-    "/hands",
-    status_code=201,
-    response_model=HandOut,
-    dependencies=[WriteAccess],
-    responses={409: problem("a hand of this name is registered already"), **WRITE},
-    summary="Register a hand (multipart: manifest, model, assets)",
-)
+_REGISTER: dict[str, Any] = {
+    "status_code": 201,
+    "response_model": HandOut,
+    "dependencies": [WriteAccess],
+    "responses": {409: problem("a hand of this name is registered already"), **WRITE},
+}
+
+
+@router.post("/hands", summary="Register a hand (multipart: manifest, model, assets)", **_REGISTER)
 async def register_hand(
     ctx: Ctx,
     response: Response,
     manifest: Annotated[UploadFile, File(description="hand.toml")],
-    model: Annotated[UploadFile, File(description="the MJCF (.xml) or URDF (.urdf) file the manifest names")],
+    model: Annotated[UploadFile, File(description=_MODEL_FILE)],
     assets: Annotated[
         list[UploadFile] | None, File(description="other files (meshes, includes); filename = relative path")
     ] = None,
 ) -> dict[str, Any]:
     """Upload and register a new hand; 201 with its summary, ``Location`` and ``ETag``."""
     man, folder, listing = await _write_upload(ctx, manifest, model, assets or [], None)
+    return await _register(ctx, response, man, folder, listing)
+
+
+@router.post("/hands/archive", summary="Register a hand from one archive (.zip, .tar.gz) of its folder", **_REGISTER)
+async def register_hand_archive(
+    ctx: Ctx,
+    response: Response,
+    archive: Annotated[UploadFile, File(description="a .zip or .tar.gz with hand.toml at its top (or in one folder)")],
+) -> dict[str, Any]:
+    """Upload a hand's folder as one archive and register it; 201 with its summary, ``Location`` and ``ETag``."""
+    limits = ctx.settings.limits
+    data = await _read_limited(archive, limits.max_total_bytes, "archive")
+    files = await run_in_threadpool(read_archive, data, archive.filename or "", limits)
+    man = _parse_manifest(files["hand.toml"])
+    model_rel = _relative(man.model, "manifest.model")
+    if model_rel not in files:
+        raise InvalidHandModel("the archive lacks the model file the manifest names", field="manifest.model",
+                               value=man.model)  # fmt: skip
+    folder, listing = await _store(ctx, man, files)
+    return await _register(ctx, response, man, folder, listing)
+
+
+async def _register(
+    ctx: Any, response: Response, man: HandManifest, folder: FsPath, listing: list[dict[str, Any]]
+) -> dict[str, Any]:
+    """Load the stored hand in a worker and add it to the registry (its folder is removed on any failure)."""
     try:
         if man.name in await run_in_threadpool(repo.hand_names, ctx.registry):
             raise Conflict("a hand of this name is registered already", field="manifest.name", value=man.name)
@@ -228,7 +272,7 @@ async def replace_hand(
     response: Response,
     if_match: IfMatchRequired,
     manifest: Annotated[UploadFile, File(description="hand.toml (its name must be the hand's)")],
-    model: Annotated[UploadFile, File(description="the MJCF (.xml) or URDF (.urdf) file the manifest names")],
+    model: Annotated[UploadFile, File(description=_MODEL_FILE)],
     assets: Annotated[list[UploadFile] | None, File(description="other files; filename = relative path")] = None,
 ) -> dict[str, Any]:
     """Replace the files of an uploaded hand; its revision (and ETag) changes, its signatures stay (each records
