@@ -39,7 +39,8 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from softsig_service.errors import FrameNotFound, InvalidInput
-from softsig_service.geometry.transforms import as_finite_array, check_transform
+from softsig_service.geometry.checks import as_finite_array
+from softsig_service.geometry.transforms import check_transform
 
 FloatArray = NDArray[np.float64]
 

@@ -39,7 +39,8 @@ from softsig_service.arm.ur5 import HOME_Q, UR5, load_ur5
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.ellipsoid import mvee
-from softsig_service.geometry.transforms import Pose, matrix_to_quat
+from softsig_service.geometry.quaternions import matrix_to_quat
+from softsig_service.geometry.transforms import Pose
 from softsig_service.hands.closure import simulate_closure
 from softsig_service.hands.collision_shapes import hand_collision_shapes
 from softsig_service.hands.model import load_hand
@@ -47,7 +48,8 @@ from softsig_service.objects import TableObject
 from softsig_service.planning.clearance import HandClearance
 from softsig_service.planning.strategies import STRATEGIES, axis_angle_between_lines, strategy_s_poses
 from softsig_service.planning.wrist_pose import solve_wrist_pose
-from softsig_service.signatures.closure import CRITERIA, ClosureSignature, Criterion, compute_closure_signature
+from softsig_service.signatures.closure import compute_closure_signature
+from softsig_service.signatures.closure_types import CRITERIA, ClosureSignature, Criterion
 
 START_HEIGHT = 0.5
 """[m] the descent starts this far above the object's centre along the approach."""

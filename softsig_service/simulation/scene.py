@@ -56,7 +56,7 @@ from numpy.typing import NDArray
 from softsig_service.arm.ur5 import FLANGE_FRAME, JOINT_NAMES, URDF_RELATIVE, find_robots_dir
 from softsig_service.config import Settings, default_settings
 from softsig_service.errors import InvalidHandModel
-from softsig_service.geometry.transforms import matrix_to_quat
+from softsig_service.geometry.quaternions import matrix_to_quat
 from softsig_service.hands.manifest import load_manifest
 from softsig_service.hands.model import HandModel, compile_hand, resolve_hand_path
 from softsig_service.objects import TableObject

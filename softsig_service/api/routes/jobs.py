@@ -29,10 +29,10 @@ from softsig_service.api.schemas import (
     JobList,
     JobOut,
     ValidationIn,
-    object_json,
 )
 from softsig_service.errors import HandNotFound, InvalidInput, NotAvailable, NotFound
 from softsig_service.objects import object_from_json
+from softsig_service.objects.schema import object_json
 from softsig_service.registry import repository as repo
 from softsig_service.services.jobs import list_files, media_type, resolve_file
 
