@@ -2,7 +2,6 @@
 
 from softsig_service.hands.assets import (
     ModelSource,
-    check_mjcf_paths,
     check_relative_path,
     load_urdf_source,
     read_model_text,
@@ -54,7 +53,6 @@ __all__ = [
     "SimulationSettings",
     "builtin_hand_names",
     "builtin_hands_dir",
-    "check_mjcf_paths",
     "check_relative_path",
     "closure_command",
     "closure_summary",
