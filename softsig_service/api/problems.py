@@ -31,6 +31,7 @@ anything unexpected                   500     internal-error (a bug: never from 
 
 from __future__ import annotations
 
+import json
 import logging
 import re
 from typing import Any
@@ -58,9 +59,20 @@ from softsig_service.services.problems import (
 from softsig_service.validation import error_choices, field_path
 
 
+class ProblemResponse(JSONResponse):
+    """A problem body as ASCII JSON: a value echoed from the request may hold any code point, lone surrogates
+    included (they cannot be encoded as UTF-8, but ``\\udc80`` is valid JSON)."""
+
+    media_type = PROBLEM_MEDIA_TYPE
+
+    def render(self, content: Any) -> bytes:
+        """The body as compact ASCII JSON."""
+        return json.dumps(content, ensure_ascii=True, allow_nan=False, separators=(",", ":")).encode("ascii")
+
+
 def problem_response(status: int, body: dict[str, Any], headers: dict[str, str] | None = None) -> JSONResponse:
     """A JSONResponse with the problem media type."""
-    return JSONResponse(body, status_code=status, media_type=PROBLEM_MEDIA_TYPE, headers=headers)
+    return ProblemResponse(body, status_code=status, headers=headers)
 
 
 log = logging.getLogger("softsig.api")

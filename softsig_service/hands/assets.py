@@ -18,6 +18,12 @@ from pathlib import Path, PurePosixPath
 from softsig_service.config import ModelLimits
 from softsig_service.errors import InvalidHandModel, ModelTooLarge, UnsafePath
 
+MAX_PATH_CHARS = 1024
+MAX_PATH_PARTS = 32
+MAX_NAME_BYTES = 200
+"""Limits of a file path in a hand's folder: characters, folders deep, bytes of one name (the file system's
+limit is 255; the rest is left for softsig's own suffixes)."""
+
 
 @dataclass(frozen=True)
 class ModelSource:
@@ -32,9 +38,21 @@ def check_relative_path(ref: str, field: str) -> PurePosixPath:
     """``ref`` as a relative POSIX path, or :class:`UnsafePath` if it is absolute, a URL or climbs out with ``..``."""
     if ref.startswith(("file:", "http:", "https:", "/", "\\")) or (len(ref) > 1 and ref[1] == ":"):
         raise UnsafePath("asset paths must be relative to the hand's folder", field=field, value=ref)
+    if len(ref) > MAX_PATH_CHARS or ref.count("/") + ref.count("\\") >= MAX_PATH_PARTS:
+        raise UnsafePath(
+            f"asset paths are at most {MAX_PATH_CHARS} characters in at most {MAX_PATH_PARTS} parts", field=field,
+            value=ref,
+        )  # fmt: skip
     rel = PurePosixPath(ref.replace("\\", "/"))
     if ".." in rel.parts:
         raise UnsafePath("asset paths must not leave the hand's folder", field=field, value=ref)
+    for part in rel.parts:
+        try:
+            size = len(part.encode("utf-8"))
+        except UnicodeEncodeError:
+            raise UnsafePath("asset paths must be valid Unicode text", field=field, value=ref) from None
+        if size > MAX_NAME_BYTES or "\0" in part:
+            raise UnsafePath(f"a file or folder name is at most {MAX_NAME_BYTES} bytes", field=field, value=ref)
     return rel
 
 
