@@ -7,7 +7,8 @@ manager, and marks jobs left unfinished by a previous run as failed. At shutdown
 worker processes.
 
 Routes live under ``/v1`` (``routes/``); ``/healthz``, ``/readyz`` and ``/metrics`` at the root. Middleware, from
-the outside in: request id + access log + metrics (``api/logging.py``), then the body limit (``api/problems.py``).
+the outside in: request id + access log + metrics (``api/logging.py``), the API key and the body read timeout
+(``api/guard.py``), then the body limits (``api/problems.py``).
 ``openapi/openapi.json`` is :func:`openapi_json` of an app with default settings (the schema does not depend on
 settings).
 """
@@ -25,6 +26,7 @@ from starlette.concurrency import run_in_threadpool
 
 from softsig_service import __version__
 from softsig_service.api.context import AppContext
+from softsig_service.api.guard import AuthGateMiddleware
 from softsig_service.api.logging import RequestContextMiddleware
 from softsig_service.api.problems import BodyLimitMiddleware, install_problem_handlers
 from softsig_service.config import Settings
@@ -37,8 +39,10 @@ from softsig_service.services.observability import Metrics
 
 log = logging.getLogger("softsig.api")
 
-UPLOAD_PATHS: tuple[str, ...] = (r"/v1/hands", r"/v1/hands/[^/]+", r"/v1/hands/[^/]+/signatures/markers")
-"""Paths whose bodies are multipart uploads (limit ``max_upload_bytes``)."""
+UPLOAD_PATHS: tuple[str, ...] = (r"/v1/hands", r"/v1/hands/archive", r"/v1/hands/[^/]+")
+"""Paths whose bodies are multipart uploads of hands (limit ``max_upload_bytes``)."""
+MARKERS_PATH = r"/v1/hands/[^/]+/signatures/markers"
+"""The marker upload (limit ``max_markers_bytes``)."""
 
 DESCRIPTION = """\
 softsig over HTTP: a versioned registry of hands and their closure and stiffness signatures, top-grasp planning
@@ -127,6 +131,13 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
         max_body_bytes=settings.max_body_bytes,
         max_upload_bytes=settings.max_upload_bytes,
         upload_paths=UPLOAD_PATHS,
+        route_limits=((MARKERS_PATH, settings.max_markers_bytes),),
+    )
+    app.add_middleware(
+        AuthGateMiddleware,
+        api_keys=[k.get_secret_value() for k in settings.api_keys],
+        read_auth=settings.read_auth,
+        body_read_timeout=settings.body_read_timeout,
     )
     from softsig_service.api.routes import hands, jobs, ops, plans, signatures
 

@@ -172,24 +172,41 @@ def _limit_for(path: str, methods_upload: tuple[str, ...]) -> bool:
 class BodyLimitMiddleware:
     """Pure ASGI middleware: 413 problem when a request body exceeds its limit.
 
-    The limit is ``max_upload_bytes`` for paths matching one of ``upload_paths`` (regular expressions; the
+    The limit is the one of the first of ``route_limits`` (regular expression, bytes) whose pattern matches the
+    path, else ``max_upload_bytes`` for paths matching one of ``upload_paths`` (regular expressions; the
     multipart routes) and ``max_body_bytes`` for every other path. A ``Content-Length`` over the limit is refused
     before any byte is read; a body streamed without (or beyond) its ``Content-Length`` is counted as it arrives
     and refused as soon as it passes the limit.
     """
 
-    def __init__(self, app: Any, *, max_body_bytes: int, max_upload_bytes: int, upload_paths: tuple[str, ...]) -> None:
+    def __init__(
+        self,
+        app: Any,
+        *,
+        max_body_bytes: int,
+        max_upload_bytes: int,
+        upload_paths: tuple[str, ...],
+        route_limits: tuple[tuple[str, int], ...] = (),
+    ) -> None:
         self.app = app
         self.max_body = max_body_bytes
         self.max_upload = max_upload_bytes
         self.upload_paths = upload_paths
+        self.route_limits = route_limits
+
+    def limit(self, path: str) -> int:
+        """The body limit of ``path``: its own (``route_limits``), the upload limit or the general one."""
+        for pattern, limit in self.route_limits:
+            if re.fullmatch(pattern, path):
+                return limit
+        return self.max_upload if _limit_for(path, self.upload_paths) else self.max_body
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
         path = scope.get("path", "")
-        limit = self.max_upload if _limit_for(path, self.upload_paths) else self.max_body
+        limit = self.limit(path)
         declared: int | None = None
         for key, value in scope.get("headers", ()):
             if key == b"content-length":

@@ -17,6 +17,7 @@ description that reads outside its folder, reads the environment or runs a comma
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import shutil
 import tomllib
@@ -172,14 +173,17 @@ async def _store(
     try:
         listing = await run_in_threadpool(write)
     except BaseException:
-        shutil.rmtree(folder, ignore_errors=True)
+        _remove(folder)
         raise
     return folder, listing
 
 
 def _remove(folder: str | FsPath | None) -> None:
+    """Remove a revision's folder, and the hand's folder above it when that is left empty."""
     if folder is not None:
         shutil.rmtree(folder, ignore_errors=True)
+        with contextlib.suppress(OSError):
+            FsPath(folder).parent.rmdir()
 
 
 @router.get("/hands", response_model=HandList, dependencies=[ReadAccess], responses=READ, summary="List hands")
