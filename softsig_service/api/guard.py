@@ -18,7 +18,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import Receive, Scope, Send
 
 from softsig_service.api.deps import key_is_valid
-from softsig_service.api.problems import problem_response
+from softsig_service.api.problems import problem_response, run_answering
 from softsig_service.services.problems import problem_body
 
 _WRITES = frozenset({"POST", "PUT", "PATCH", "DELETE"})
@@ -67,7 +67,6 @@ class AuthGateMiddleware:
             headers = {"WWW-Authenticate": 'ApiKey header="X-API-Key"', "Connection": "close"}
             await problem_response(401, body, headers)(scope, receive, send)
             return
-        started = False
         body_done = False
 
         async def timed_receive() -> Any:
@@ -81,16 +80,4 @@ class AuthGateMiddleware:
             body_done = message["type"] != "http.request" or not message.get("more_body", False)
             return message
 
-        async def tracking_send(message: Any) -> None:
-            nonlocal started
-            if message["type"] == "http.response.start":
-                started = True
-            await send(message)
-
-        try:
-            await self.app(scope, timed_receive, tracking_send)
-        except BodyReadTimeout as exc:
-            if started:
-                raise
-            body = problem_body(408, slug="request-timeout", detail=str(exc.detail), instance=path, field="body")
-            await problem_response(408, body, {"Connection": "close"})(scope, receive, send)
+        await run_answering(self.app, scope, timed_receive, send, BodyReadTimeout, "request-timeout")

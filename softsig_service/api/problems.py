@@ -225,7 +225,6 @@ class BodyLimitMiddleware:
             await problem_response(413, body, {"Connection": "close"})(scope, receive, send)
             return
         received = 0
-        started = False
 
         async def counting_receive() -> Any:
             nonlocal received
@@ -236,17 +235,28 @@ class BodyLimitMiddleware:
                     raise BodyTooLarge(limit, received)
             return message
 
-        async def tracking_send(message: Any) -> None:
-            nonlocal started
-            if message["type"] == "http.response.start":
-                started = True
-            await send(message)
+        await run_answering(self.app, scope, counting_receive, send, BodyTooLarge, "content-too-large")
 
-        try:
-            await self.app(scope, counting_receive, tracking_send)
-        except BodyTooLarge as exc:
-            if started:
-                raise
-            body = problem_body(413, slug="content-too-large", detail=str(exc.detail), instance=path,
-                                **exc.problem_extensions)  # fmt: skip
-            await problem_response(413, body, {"Connection": "close"})(scope, receive, send)
+
+async def run_answering(
+    app: Any, scope: Scope, receive: Receive, send: Send, error: type[StarletteHTTPException], slug: str
+) -> None:
+    """Run ``app``; an ``error`` raised by ``receive`` before the response started becomes its problem answer
+    (the connection closed), one raised after it is re-raised."""
+    started = False
+
+    async def tracking_send(message: Any) -> None:
+        nonlocal started
+        if message["type"] == "http.response.start":
+            started = True
+        await send(message)
+
+    try:
+        await app(scope, receive, tracking_send)
+    except error as exc:
+        if started:
+            raise
+        extensions = getattr(exc, "problem_extensions", {})
+        body = problem_body(exc.status_code, slug=slug, detail=str(exc.detail), instance=scope.get("path", ""),
+                            **extensions)  # fmt: skip
+        await problem_response(exc.status_code, body, {"Connection": "close"})(scope, receive, send)
