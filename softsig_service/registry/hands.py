@@ -127,12 +127,21 @@ def sync_builtin_hand(reg: Registry, *, name: str, manifest_path: str, info: dic
     """Register a built-in hand if missing, refresh its path and summary if they changed.
 
     Returns ``"added"``, ``"updated"`` (revision incremented) or ``"unchanged"``. A user's hand of the same name
-    is left alone (``"shadowed"``).
+    is left alone (``"shadowed"``). Safe when several service workers start at once: the one whose insert loses
+    the race on the hand's unique name (PostgreSQL) looks again and finds the row the winner added.
     """
+    try:
+        return _sync_builtin_hand(reg, name=name, manifest_path=manifest_path, info=info)
+    except IntegrityError:
+        return _sync_builtin_hand(reg, name=name, manifest_path=manifest_path, info=info)
+
+
+def _sync_builtin_hand(reg: Registry, *, name: str, manifest_path: str, info: dict[str, Any]) -> str:
     with reg.write() as s:
         row = s.scalars(select(HandRow).where(HandRow.name == name)).one_or_none()
         if row is None:
             s.add(HandRow(name=name, builtin=True, revision=1, manifest_path=manifest_path, info=info, files=[]))
+            s.flush()
             return "added"
         if not row.builtin:
             return "shadowed"
