@@ -10,7 +10,8 @@
 #    loopback port, then GET /healthz, GET /readyz, POST /v1/plans and GET /v1/plans/{id};
 # 5. PostgreSQL and two replicas (docs/deploy.md), where a PostgreSQL server is installed on this host: a
 #    throwaway cluster on a loopback port, two containers of the image started together on it with one shared
-#    data folder; both become ready, and a plan stored through one is read through the other;
+#    data folder; both become ready, a plan stored through one is read through the other, and Alembic's command
+#    line in the image (docs/deploy.md) finds the schema at head;
 # 6. everything it made (containers, images, storage, clusters, folders) is removed on exit, pass or fail.
 #
 # Needs root, buildah and, for the fallback base, debootstrap (apt-get install buildah debootstrap).
@@ -170,5 +171,9 @@ else
     'SELECT version_num FROM alembic_version')
   log "two replicas on PostgreSQL (schema $revision): plan $plan_id stored by one, read by the other; same hands"
   stop_servers
+  current=$("${RUN[@]}" --env SOFTSIG_DATABASE_URL="$DB" softsig-smoke-pg1 \
+    -- alembic -c softsig_service/registry/migrations/alembic.ini current 2>/dev/null) || fail "alembic current"
+  [ "$current" = "$revision (head)" ] || fail "alembic current in the image answered '$current'"
+  log "alembic current in the image: $current"
 fi
 log "passed in $((SECONDS - START)) s (wall time, base and build included)"
