@@ -15,6 +15,7 @@ settings).
 
 from __future__ import annotations
 
+import asyncio
 import json
 import logging
 from collections.abc import AsyncIterator, Mapping
@@ -38,6 +39,7 @@ from softsig_service.services.compute import ComputePool
 from softsig_service.services.job_kinds import default_job_kinds, register_builtin_hands
 from softsig_service.services.jobs import JobKind, JobManager
 from softsig_service.services.observability import Metrics
+from softsig_service.services.retention import retention_loop
 
 log = logging.getLogger("softsig.api")
 
@@ -93,6 +95,7 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
         )
         pool = ComputePool(settings.compute_workers, settings.compute_timeout)
         jobs = JobManager(registry, settings, kinds, jobs_dir, metrics)
+        purger: asyncio.Task[None] | None = None
         try:
             planner = await run_in_threadpool(_startup, settings, registry)
             await jobs.start()
@@ -108,9 +111,15 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
                 hands_dir=hands_dir,
                 plans_dir=plans_dir,
             )
+            if settings.retention_days is not None:
+                purger = asyncio.create_task(
+                    retention_loop(registry, settings.retention_days, settings.retention_interval, plans_dir, jobs_dir)
+                )
             log.info("softsig service ready (registry %s)", registry.engine.url.render_as_string(hide_password=True))
             yield
         finally:
+            if purger is not None:
+                purger.cancel()
             await jobs.shutdown()
             pool.shutdown()
             registry.dispose()

@@ -32,21 +32,9 @@ class AppContext:
     """Serialises ``planner.plan``: the planner solves its CasADi NLP outside its own lock, and concurrent calls
     corrupt memory (seen as heap corruption with 2-4 threads); one plan at a time costs little since most of a
     plan runs under the planner's lock anyway."""
-    _hand_cache: dict[str, repo.HandRecord] = field(default_factory=dict)
-    _lock: threading.Lock = field(default_factory=threading.Lock)
 
     def hand(self, name: str, *, field: str = "hand") -> repo.HandRecord:
-        """The registered hand ``name`` (cached; :meth:`forget_hand` after a change)."""
-        with self._lock:
-            cached = self._hand_cache.get(name)
-        if cached is not None:
-            return cached
-        record = repo.get_hand(self.registry, name, field=field)
-        with self._lock:
-            self._hand_cache[name] = record
-        return record
-
-    def forget_hand(self, name: str) -> None:
-        """Drop ``name`` from the hand cache."""
-        with self._lock:
-            self._hand_cache.pop(name, None)
+        """The registered hand ``name`` as the registry holds it now: another process of the service may have
+        replaced or deleted it, so it is read on every call (one indexed row; the compiled model is cached by
+        its manifest path, which changes with each revision)."""
+        return repo.get_hand(self.registry, name, field=field)

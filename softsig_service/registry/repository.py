@@ -31,10 +31,11 @@ from softsig_service.registry.jobs import (
     get_job,
     interrupt_unfinished_jobs,
     list_jobs,
+    purge_jobs,
     request_cancel,
     update_job,
 )
-from softsig_service.registry.plans import PlanRecord, add_plan, get_plan, list_plans
+from softsig_service.registry.plans import PlanRecord, add_plan, delete_plan, get_plan, list_plans, purge_plans
 from softsig_service.registry.signatures import (
     SignatureRecord,
     add_signature,
@@ -55,6 +56,7 @@ __all__ = [
     "add_plan",
     "add_signature",
     "delete_hand",
+    "delete_plan",
     "etag_matches",
     "get_hand",
     "get_job",
@@ -67,6 +69,8 @@ __all__ = [
     "list_jobs",
     "list_plans",
     "list_signatures",
+    "purge_jobs",
+    "purge_plans",
     "replace_hand",
     "request_cancel",
     "sync_builtin_hand",

@@ -253,7 +253,6 @@ async def _register(
     except BaseException:
         _remove(folder)
         raise
-    ctx.forget_hand(record.name)
     response.headers["Location"] = f"/v1/hands/{record.name}"
     response.headers["ETag"] = record.etag
     return hand_out(record)
@@ -321,7 +320,6 @@ async def replace_hand(
     except BaseException:
         _remove(folder)
         raise
-    ctx.forget_hand(hand)
     _remove(old)
     response.headers["ETag"] = record.etag
     return hand_out(record)
@@ -343,6 +341,5 @@ async def replace_hand(
 def delete_hand(ctx: Ctx, hand: HandPath, if_match: IfMatchRequired) -> Response:
     """Delete an uploaded hand, its signature versions and its files. Stored plans of it stay."""
     record = repo.delete_hand(ctx.registry, hand, if_match=if_match)
-    ctx.forget_hand(hand)
     _remove(record.folder)
     return Response(status_code=204)
