@@ -23,6 +23,7 @@ from typing import Any
 
 from softsig_service import errors
 from softsig_service.errors import ComputeFailed, ServiceBusy, SoftsigError, TimeLimitExceeded
+from softsig_service.services.lifeline import follow_parent
 from softsig_service.services.observability import request_id_var
 from softsig_service.services.problems import short_value
 
@@ -74,6 +75,12 @@ def _worker_init() -> None:
     prepare_mujoco()
 
 
+def _pool_init() -> None:
+    """Initializer of a compute-pool worker: it dies with the service, and MuJoCo is prepared."""
+    follow_parent()
+    _worker_init()
+
+
 def _noop() -> None:
     return None
 
@@ -97,7 +104,7 @@ class ComputePool:
             raise ServiceBusy("the service is shutting down", field=None)
         if self._executor is None:
             self._executor = concurrent.futures.ProcessPoolExecutor(
-                max_workers=self.workers, mp_context=_MP, initializer=_worker_init
+                max_workers=self.workers, mp_context=_MP, initializer=_pool_init
             )
         return self._executor
 
