@@ -108,7 +108,7 @@ def resolve_hand_path(ref: str, settings: Settings | None = None) -> Path:
     candidate = Path(ref)
     if candidate.suffix == ".toml":
         if not candidate.is_file():
-            raise HandNotFound("manifest file not found", field="hand", value=ref)
+            raise HandNotFound("manifest file not found", field="hand", value=candidate.name)
         return candidate.resolve()
     if candidate.is_dir() and (candidate / "hand.toml").is_file():
         return (candidate / "hand.toml").resolve()

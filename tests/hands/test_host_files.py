@@ -157,3 +157,13 @@ def test_urdf_elements_cannot_read_host_files(tmp_path: Path, settings: Settings
         assert str(folder) not in f"{err.message} {err.value} {err.field}"
         answers.append((type(err), err.field))
     assert answers[0] == answers[1]
+
+
+def test_a_missing_manifest_does_not_show_its_host_path(tmp_path: Path, settings: Settings) -> None:
+    from softsig_service.hands.manifest import load_manifest
+
+    missing = tmp_path / "gone" / "hand.toml"
+    for load in (lambda: load_hand(str(missing), settings), lambda: load_manifest(missing)):
+        with pytest.raises(SoftsigError) as info:
+            load()
+        assert str(tmp_path) not in f"{info.value.message} {info.value.value}"
