@@ -37,7 +37,6 @@ from softsig_service.errors import ExpansionLimit, InvalidHandModel, UnsafeDescr
 
 CACHE_DIR = ".softsig-cache"
 """Folder inside a hand's folder that holds its expanded URDFs (never part of an upload)."""
-XACRO_SUFFIXES = (".xacro",)
 
 _MEMORY: dict[str, ExpandedUrdf] = {}
 
@@ -50,11 +49,6 @@ class ExpandedUrdf:
     sha256: str
     key: str
     files: tuple[str, ...]
-
-
-def is_xacro(model: str) -> bool:
-    """Whether a manifest's ``model`` path names a xacro file."""
-    return model.lower().endswith(XACRO_SUFFIXES)
 
 
 def cache_key(file: Path, folder: Path, args: Mapping[str, str], limits: ModelLimits) -> str:

@@ -1,10 +1,108 @@
-"""softsig_service.registry: the service's database (:class:`Registry`) and its repository functions.
+"""The registry (SQLAlchemy): hands, their versioned signatures, stored plans, jobs and idempotency keys, on SQLite
+or PostgreSQL, with Alembic migrations."""
 
-The public names of :mod:`~softsig_service.registry.repository` are importable from here as well.
-"""
+from softsig_service.registry.db import Registry, make_engine
+from softsig_service.registry.hands import (
+    HandRecord,
+    add_hand,
+    delete_hand,
+    etag_matches,
+    get_hand,
+    hand_names,
+    hand_row,
+    incarnation,
+    list_hands,
+    replace_hand,
+    sync_builtin_hand,
+)
+from softsig_service.registry.idempotency import (
+    StoredResponse,
+    claim_key,
+    complete_key,
+    find_key,
+    purge_expired_keys,
+    release_key,
+)
+from softsig_service.registry.jobs import (
+    JobRecord,
+    add_job,
+    get_job,
+    interrupt_unfinished_jobs,
+    list_jobs,
+    purge_jobs,
+    request_cancel,
+    update_job,
+)
+from softsig_service.registry.migrate import SchemaTooNew, alembic_config, current_revision, head_revision, upgrade
+from softsig_service.registry.models import (
+    Base,
+    HandRow,
+    IdempotencyRow,
+    JobRow,
+    PlanRow,
+    SignatureRow,
+    UTCDateTime,
+    utcnow,
+)
+from softsig_service.registry.plans import PlanRecord, add_plan, delete_plan, get_plan, list_plans, purge_plans
+from softsig_service.registry.signatures import (
+    SignatureRecord,
+    add_signature,
+    get_signature,
+    latest_signature,
+    list_signatures,
+)
 
-from softsig_service.registry.db import Registry
-from softsig_service.registry.repository import *  # noqa: F403
-from softsig_service.registry.repository import __all__ as _repository_names
-
-__all__ = ["Registry", *_repository_names]
+__all__ = [
+    "Base",
+    "HandRecord",
+    "HandRow",
+    "IdempotencyRow",
+    "JobRecord",
+    "JobRow",
+    "PlanRecord",
+    "PlanRow",
+    "Registry",
+    "SchemaTooNew",
+    "SignatureRecord",
+    "SignatureRow",
+    "StoredResponse",
+    "UTCDateTime",
+    "add_hand",
+    "add_job",
+    "add_plan",
+    "add_signature",
+    "alembic_config",
+    "claim_key",
+    "complete_key",
+    "current_revision",
+    "delete_hand",
+    "delete_plan",
+    "etag_matches",
+    "find_key",
+    "get_hand",
+    "get_job",
+    "get_plan",
+    "get_signature",
+    "hand_names",
+    "hand_row",
+    "head_revision",
+    "incarnation",
+    "interrupt_unfinished_jobs",
+    "latest_signature",
+    "list_hands",
+    "list_jobs",
+    "list_plans",
+    "list_signatures",
+    "make_engine",
+    "purge_expired_keys",
+    "purge_jobs",
+    "purge_plans",
+    "release_key",
+    "replace_hand",
+    "request_cancel",
+    "sync_builtin_hand",
+    "update_job",
+    "upgrade",
+    "utcnow",
+]

@@ -6,9 +6,10 @@ are compared strongly; ``*`` matches any current representation. Built-in hands 
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import UTC, datetime
 from typing import Any
 
 from sqlalchemy import select
@@ -28,6 +29,12 @@ def etag_matches(current: str | None, if_match: str) -> bool:
     return any(t == "*" or t == current for t in tags)
 
 
+def incarnation(created_at: datetime) -> str:
+    """Eight hex digits naming one life of a hand: a hash of its creation time (microseconds, UTC). A hand deleted
+    and registered again under its name gets new ETags for itself and its signature versions."""
+    return hashlib.sha256(created_at.astimezone(UTC).isoformat().encode()).hexdigest()[:8]
+
+
 @dataclass(frozen=True)
 class HandRecord:
     """A registered hand: its manifest on disk, the summary of its model (``info``) and registry metadata."""
@@ -45,8 +52,9 @@ class HandRecord:
 
     @property
     def etag(self) -> str:
-        """Strong ETag of this revision of the hand."""
-        return f'"{self.name}.r{self.revision}"'
+        """Strong ETag of this revision of the hand: ``"<name>.r<revision>.<incarnation>"``, unique also across a
+        delete and a re-creation under the same name (:func:`incarnation`)."""
+        return f'"{self.name}.r{self.revision}.{incarnation(self.created_at)}"'
 
 
 def _hand(row: HandRow) -> HandRecord:

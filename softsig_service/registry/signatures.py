@@ -16,7 +16,7 @@ from sqlalchemy import func, select, update
 
 from softsig_service.errors import Conflict, NotFound, PreconditionFailed
 from softsig_service.registry.db import Registry
-from softsig_service.registry.hands import etag_matches, hand_row
+from softsig_service.registry.hands import etag_matches, hand_row, incarnation
 from softsig_service.registry.models import HandRow, SignatureRow
 
 
@@ -33,11 +33,12 @@ class SignatureRecord:
     params: dict[str, Any]
     data: dict[str, Any]
     created_at: datetime
+    hand_created_at: datetime
 
     @property
     def etag(self) -> str:
-        """Strong ETag of this version."""
-        return f'"{self.hand}.v{self.version}"'
+        """Strong ETag of this version: ``"<hand>.v<version>.<incarnation of the hand>"``."""
+        return f'"{self.hand}.v{self.version}.{incarnation(self.hand_created_at)}"'
 
     @property
     def criterion(self) -> str | None:
@@ -75,6 +76,7 @@ def _signature(row: SignatureRow, hand: str) -> SignatureRecord:
         params=dict(row.params or {}),
         data=dict(row.data),
         created_at=row.created_at,
+        hand_created_at=row.hand.created_at,
     )
 
 

@@ -86,8 +86,9 @@ def assert_problem(response: Any, status: int, field: str | None = None) -> dict
     return body
 
 
-def wait_for(predicate: Callable[[], Any], timeout: float = 60.0, poll: float = 0.05) -> Any:
-    """Poll ``predicate`` until it returns something truthy (or fail after ``timeout`` [s])."""
+def wait_for(predicate: Callable[[], Any], timeout: float = 180.0, poll: float = 0.05) -> Any:
+    """Poll ``predicate`` until it returns something truthy (or fail after ``timeout`` [s]: generous, since a
+    spawned job process imports MuJoCo and the machine may be busy; a healthy wait returns at once)."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         value = predicate()

@@ -33,7 +33,9 @@ def count(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
 def sleep_forever(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     """Start a helper process (as a campaign starts workers), record both pids, then never finish."""
     helper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
-    (ctx.out_dir / "pids.json").write_text(json.dumps({"job": os.getpid(), "helper": helper.pid}))
+    tmp = ctx.out_dir / "pids.json.tmp"  # written whole, then renamed: a reader never sees half a file
+    tmp.write_text(json.dumps({"job": os.getpid(), "helper": helper.pid}))
+    tmp.replace(ctx.out_dir / "pids.json")
     ctx.progress(0.25, "sleeping")
     while True:
         time.sleep(0.05)

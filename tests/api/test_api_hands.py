@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from api_helpers import AUTH, assert_problem, gripper_files, make_settings, upload
@@ -32,7 +33,8 @@ def test_register_get_replace_delete_a_hand(api: TestClient) -> None:
     r = api.post("/v1/hands", files=upload(files), headers=AUTH)
     assert r.status_code == 201, r.text
     body = r.json()
-    assert r.headers["location"] == "/v1/hands/my_gripper" and r.headers["etag"] == body["etag"] == '"my_gripper.r1"'
+    assert r.headers["location"] == "/v1/hands/my_gripper" and r.headers["etag"] == body["etag"]
+    assert re.fullmatch(r'"my_gripper\.r1\.[0-9a-f]{8}"', body["etag"])
     assert body["builtin"] is False and body["model_format"] == "mjcf"
     assert {f["path"] for f in body["files"]} == {"hand.toml", "parallel_gripper.xml", "scene.xml", "meshes/tet.obj"}
     assert any(g["type"] == "slide" for g in body["info"]["joints"])
@@ -46,21 +48,34 @@ def test_register_get_replace_delete_a_hand(api: TestClient) -> None:
     assert_problem(api.put("/v1/hands/my_gripper", files=upload(files), headers=stale), 412, "If-Match")
     put = api.put("/v1/hands/my_gripper", files=upload(files), headers={**AUTH, "If-Match": body["etag"]})
     assert put.status_code == 200, put.text
-    assert put.json()["revision"] == 2 and put.headers["etag"] == '"my_gripper.r2"'
+    assert put.json()["revision"] == 2 and put.headers["etag"] == body["etag"].replace(".r1.", ".r2.")
     renamed = gripper_files("other_name")
     assert_problem(
-        api.put("/v1/hands/my_gripper", files=upload(renamed), headers={**AUTH, "If-Match": '"my_gripper.r2"'}),
+        api.put("/v1/hands/my_gripper", files=upload(renamed), headers={**AUTH, "If-Match": put.headers["etag"]}),
         422,
         "manifest.name",
     )
 
     assert_problem(api.delete("/v1/hands/my_gripper", headers=AUTH), 428, "If-Match")
     assert_problem(api.delete("/v1/hands/my_gripper", headers={**AUTH, "If-Match": body["etag"]}), 412, "If-Match")
-    gone = api.delete("/v1/hands/my_gripper", headers={**AUTH, "If-Match": '"my_gripper.r2"'})
+    gone = api.delete("/v1/hands/my_gripper", headers={**AUTH, "If-Match": put.headers["etag"]})
     assert gone.status_code == 204
     assert_problem(api.get("/v1/hands/my_gripper"), 404, "hand")
     data_dir = api.app.state.ctx.hands_dir  # type: ignore[attr-defined]
     assert not any((data_dir / "my_gripper").glob("*/hand.toml")), "the hand's files are removed"
+
+    # registered again under the same name: a new life, new ETags; the old ones match nothing
+    again = api.post("/v1/hands", files=upload(files), headers=AUTH)
+    assert again.status_code == 201 and again.json()["revision"] == 1
+    assert again.headers["etag"] != body["etag"] and again.headers["etag"].startswith('"my_gripper.r1.')
+    assert_problem(api.delete("/v1/hands/my_gripper", headers={**AUTH, "If-Match": body["etag"]}), 412, "If-Match")
+    sig = api.post("/v1/hands/my_gripper/signatures/closure", json={"cs_method": "pca"}, headers=AUTH)
+    assert sig.status_code == 201 and sig.headers["etag"].startswith('"my_gripper.v1.')
+    assert api.delete("/v1/hands/my_gripper", headers={**AUTH, "If-Match": again.headers["etag"]}).status_code == 204
+    third = api.post("/v1/hands", files=upload(files), headers=AUTH)
+    sig3 = api.post("/v1/hands/my_gripper/signatures/closure", json={"cs_method": "pca"}, headers=AUTH)
+    assert sig3.headers["etag"] != sig.headers["etag"], "version 1 of another life of the hand"
+    assert api.delete("/v1/hands/my_gripper", headers={**AUTH, "If-Match": third.headers["etag"]}).status_code == 204
 
 
 def test_builtin_hands_cannot_be_deleted(api: TestClient) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import math
+import re
 import threading
 
 from api_helpers import AUTH, assert_problem
@@ -38,7 +39,8 @@ def test_closure_signature_versions(api: TestClient) -> None:
     assert r1.status_code == 201, r1.text
     v1 = r1.json()
     assert v1["version"] == 1 and v1["kind"] == "closure" and v1["source"] == "simulation" and v1["hand_revision"] == 1
-    assert r1.headers["location"] == "/v1/hands/sdm_hand/signatures/1" and r1.headers["etag"] == '"sdm_hand.v1"'
+    assert r1.headers["location"] == "/v1/hands/sdm_hand/signatures/1"
+    assert re.fullmatch(r'"sdm_hand\.v1\.[0-9a-f]{8}"', r1.headers["etag"]) and v1["etag"] == r1.headers["etag"]
     sig = v1["signature"]
     assert sig["method"] == "ellipsoid" and sig["frame_id"] == "hand"
     # the default criterion is the absolute change of the half-width [m]
@@ -55,7 +57,7 @@ def test_closure_signature_versions(api: TestClient) -> None:
     r2 = api.post("/v1/hands/sdm_hand/signatures/closure", json={"cs_method": "pca"}, headers=AUTH)
     assert r2.status_code == 201 and r2.json()["version"] == 2
     # If-Match with the latest version's ETag: a stale one is refused and stores nothing
-    stale = {**AUTH, "If-Match": '"sdm_hand.v1"'}
+    stale = {**AUTH, "If-Match": r1.headers["etag"]}
     assert_problem(api.post("/v1/hands/sdm_hand/signatures/closure", json={}, headers=stale), 412, "If-Match")
     fresh = {**AUTH, "If-Match": r2.headers["etag"]}
     r3 = api.post("/v1/hands/sdm_hand/signatures/closure", json={"cs_method": "mesh"}, headers=fresh)
@@ -67,7 +69,7 @@ def test_closure_signature_versions(api: TestClient) -> None:
     assert [s["cs_criterion"] for s in listing["items"]] == [None, None, "absolute"]
     assert "criterion" not in r2.json()["params"], "pca has no criterion"
     latest = api.get("/v1/hands/sdm_hand/signatures/latest", params={"kind": "closure"})
-    assert latest.json()["version"] == 3 and latest.headers["etag"] == '"sdm_hand.v3"'
+    assert latest.json()["version"] == 3 and latest.headers["etag"] == r3.headers["etag"] != r1.headers["etag"]
     old = api.get("/v1/hands/sdm_hand/signatures/1").json()
     assert old["signature"] == sig, "a stored version never changes"
     assert_problem(api.get("/v1/hands/sdm_hand/signatures/99"), 404, "version")
