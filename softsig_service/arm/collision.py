@@ -47,6 +47,7 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from softsig_service.arm.arm_geometry import arm_geometry
+from softsig_service.arm.broad_phase import BoundingSpheres, pair_arrays
 from softsig_service.arm.collision_report import (
     CATEGORY_ORDER,
     HAND_ATTACHED_LINKS,
@@ -72,6 +73,9 @@ from softsig_service.errors import InvalidInput
 from softsig_service.geometry.transforms import check_transform
 
 FloatArray = NDArray[np.float64]
+
+
+_CATEGORY_CODE: dict[str, int] = {"table": 0, "object": 1, "self": 2}
 
 
 @dataclass(frozen=True)
@@ -176,6 +180,10 @@ class CollisionWorld:
             k = len(pairs)
             pairs.append(_Pair(k, cat, ho, (names[a], names[b]), a in hand_set))
         self._gm = gm
+        self._spheres = BoundingSpheres(gm, table_id, self.table_height)
+        self._pair_a, self._pair_b = pair_arrays([(a, b) for a, b, _, _ in specs])
+        self._pair_category = np.array([_CATEGORY_CODE[p.category] for p in pairs], dtype=np.intp)
+        self._selections: dict[tuple[bool, bool, bool, bool], tuple[list[_Pair], NDArray[np.intp]]] = {}
         gd = pin.GeometryData(gm)
         for req in gd.collisionRequests:
             # coal 3.0.3 without contact computation can report "free" when a capsule's core segment just
@@ -203,7 +211,9 @@ class CollisionWorld:
             geo = self._object[0]
             self._object = (geo, T)
             oid = self._gm.getGeometryId(OBJECT_NAME)
-            self._gm.geometryObjects[oid].placement = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
+            placement = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
+            self._gm.geometryObjects[oid].placement = placement
+            self._spheres.move(oid, placement, geo)
             return
         self._object = (object_geometry(shape), T)
         self._object_key = key
@@ -244,9 +254,15 @@ class CollisionWorld:
 
     def _selected(
         self, check_table: bool, check_object: bool, check_self: bool, ignore_hand_object: bool
-    ) -> list[_Pair]:
-        wanted = {"table": check_table, "object": check_object, "self": check_self}
-        return [p for p in self._pairs if wanted[p.category] and not (ignore_hand_object and p.hand_object)]
+    ) -> tuple[list[_Pair], NDArray[np.intp]]:
+        """The pairs the flags select, and their indices (built once per combination of flags)."""
+        key = (check_table, check_object, check_self, ignore_hand_object)
+        hit = self._selections.get(key)
+        if hit is None:
+            wanted = {"table": check_table, "object": check_object, "self": check_self}
+            sel = [p for p in self._pairs if wanted[p.category] and not (ignore_hand_object and p.hand_object)]
+            hit = self._selections[key] = (sel, np.array([p.index for p in sel], dtype=np.intp))
+        return hit
 
     def check(
         self,
@@ -274,19 +290,35 @@ class CollisionWorld:
                 GJK calls on convex shapes).
         """
         qa = self.ur5.check_q(q)
-        pairs = self._selected(check_table, check_object, check_self, ignore_hand_object)
-        return self._check(qa, pairs, self._margins(margin, table_margin, self_margin), distances)
+        selection = self._selected(check_table, check_object, check_self, ignore_hand_object)
+        return self._check(qa, selection, self._margins(margin, table_margin, self_margin), distances)
 
-    def _check(self, q: FloatArray, pairs: list[_Pair], margins: dict[str, float], distances: bool) -> CollisionReport:
+    def _check(
+        self,
+        q: FloatArray,
+        selection: tuple[list[_Pair], NDArray[np.intp]],
+        margins: dict[str, float],
+        distances: bool,
+    ) -> CollisionReport:
+        """Check the selected pairs at ``q`` [rad]: pairs the bounding spheres rule out are not asked of coal,
+        except for the distances when ``distances`` (then every table and object pair is measured)."""
         gm, gd = self._gm, self._gd
         self._apply_margins(margins)
-        pin.updateGeometryPlacements(self._model, self._data, gm, gd, q)
+        pairs, idx = selection
+        pin.forwardKinematics(self._model, self._data, q)
+        pin.updateGeometryPlacements(self._model, self._data, gm, gd)
+        by_code = np.array([margins["table"], margins["object"], margins["self"]])
+        may_collide = self._spheres.candidates(
+            self._spheres.centres(self._data), self._pair_a[idx], self._pair_b[idx], by_code[self._pair_category[idx]]
+        )
         hits: list[tuple[str, str]] = []
         cats: set[str] = set()
         # smallest distances: [arm+hand vs table, arm+hand vs object, hand vs table, hand vs object]
         dmin: list[float | None] = [None, None, None, None]
-        for p in pairs:
-            if pin.computeCollision(gm, gd, p.index):
+        for p, maybe in zip(pairs, may_collide.tolist(), strict=True):
+            if not maybe and not (distances and p.category != "self"):
+                continue
+            if maybe and pin.computeCollision(gm, gd, p.index):
                 hits.append(p.names)
                 cats.add(p.category)
             if distances and p.category != "self":
@@ -323,7 +355,7 @@ class CollisionWorld:
             raise InvalidInput(f"expected an (N, {self.ur5.nq}) array of configurations", field="qs")
         if not np.all(np.isfinite(Q)):
             raise InvalidInput("contains NaN or infinite values", field="qs")
-        pairs = self._selected(check_table, check_object, check_self, ignore_hand_object)
+        selection = self._selected(check_table, check_object, check_self, ignore_hand_object)
         m = self._margins(margin, table_margin, self_margin)
         hits: list[tuple[str, str]] = []
         reasons: list[str] = []
@@ -331,7 +363,7 @@ class CollisionWorld:
         dmin: list[float | None] = [None, None, None, None]
         checked = 0
         for i, q in enumerate(Q):
-            r = self._check(q, pairs, m, distances)
+            r = self._check(q, selection, m, distances)
             checked += 1
             for j, d in enumerate(
                 (

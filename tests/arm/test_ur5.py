@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from softsig_service.arm.ur5 import HOME_Q, JOINT_NAMES, UR5, find_robots_dir, load_ur5
+from softsig_service.arm.robots_dir import find_robots_dir
+from softsig_service.arm.ur5 import HOME_Q, JOINT_NAMES, UR5, load_ur5
 from softsig_service.config import Settings, default_settings
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.transforms import make_transform, rot_x, rot_z
