@@ -13,6 +13,7 @@ from softsig_service.arm.shapes import (
     check_shape_size,
     coal_primitive,
     convex_hull,
+    local_aabb,
     object_geometry,
 )
 from softsig_service.arm.ur5 import UR5, IKResult, load_ur5
@@ -40,6 +41,7 @@ __all__ = [
     "levenberg_marquardt",
     "link_name",
     "load_ur5",
+    "local_aabb",
     "make_report",
     "min_optional",
     "object_geometry",

@@ -47,7 +47,7 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from softsig_service.arm.arm_geometry import arm_geometry
-from softsig_service.arm.broad_phase import BoundingSpheres, pair_arrays
+from softsig_service.arm.broad_phase import BroadPhase, pair_arrays
 from softsig_service.arm.collision_report import (
     CATEGORY_ORDER,
     HAND_ATTACHED_LINKS,
@@ -180,7 +180,7 @@ class CollisionWorld:
             k = len(pairs)
             pairs.append(_Pair(k, cat, ho, (names[a], names[b]), a in hand_set))
         self._gm = gm
-        self._spheres = BoundingSpheres(gm, table_id, self.table_height)
+        self._broad = BroadPhase(gm, table_id, self.table_height)
         self._pair_a, self._pair_b = pair_arrays([(a, b) for a, b, _, _ in specs])
         self._pair_category = np.array([_CATEGORY_CODE[p.category] for p in pairs], dtype=np.intp)
         self._selections: dict[tuple[bool, bool, bool, bool], tuple[list[_Pair], NDArray[np.intp]]] = {}
@@ -204,8 +204,14 @@ class CollisionWorld:
                 ``softsig_service.objects`` primitives), MuJoCo size conventions.
             pose: 4x4 pose ``T_world_shape`` of the shape frame [m].
         """
-        T = check_transform(pose, field="object.pose").copy()
-        key = (shape.kind, tuple(shape.size), None if shape.vertices is None else np.asarray(shape.vertices).tobytes())
+        self.set_object_unchecked(shape, check_transform(pose, field="object.pose").copy())
+
+    def set_object_unchecked(self, shape: ShapeSpec, T: FloatArray) -> None:
+        """:meth:`set_object` for callers that pass a checked rigid 4x4 float transform ``T`` [m] (not copied)."""
+        content = getattr(shape, "content_key", None)
+        if content is None and shape.vertices is not None:
+            content = np.asarray(shape.vertices).tobytes()
+        key = (shape.kind, tuple(shape.size), content)
         if self._object is not None and key == self._object_key:
             # same shape, new pose: move the existing geometry instead of rebuilding the world
             geo = self._object[0]
@@ -213,7 +219,7 @@ class CollisionWorld:
             oid = self._gm.getGeometryId(OBJECT_NAME)
             placement = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
             self._gm.geometryObjects[oid].placement = placement
-            self._spheres.move(oid, placement, geo)
+            self._broad.move(oid, placement, geo)
             return
         self._object = (object_geometry(shape), T)
         self._object_key = key
@@ -299,18 +305,18 @@ class CollisionWorld:
         selection: tuple[list[_Pair], NDArray[np.intp]],
         margins: dict[str, float],
         distances: bool,
+        may_collide: NDArray[np.bool_] | None = None,
     ) -> CollisionReport:
-        """Check the selected pairs at ``q`` [rad]: pairs the bounding spheres rule out are not asked of coal,
-        except for the distances when ``distances`` (then every table and object pair is measured)."""
+        """Check the selected pairs at ``q`` [rad]: pairs the bounding volumes rule out (``may_collide``, computed
+        here when not given) are not asked of coal, except for the distances when ``distances`` (then every table
+        and object pair is measured)."""
         gm, gd = self._gm, self._gd
         self._apply_margins(margins)
-        pairs, idx = selection
+        pairs, _ = selection
+        if may_collide is None:
+            may_collide = self._may_collide(q[None, :], selection, margins)[0]
         pin.forwardKinematics(self._model, self._data, q)
         pin.updateGeometryPlacements(self._model, self._data, gm, gd)
-        by_code = np.array([margins["table"], margins["object"], margins["self"]])
-        may_collide = self._spheres.candidates(
-            self._spheres.centres(self._data), self._pair_a[idx], self._pair_b[idx], by_code[self._pair_category[idx]]
-        )
         hits: list[tuple[str, str]] = []
         cats: set[str] = set()
         # smallest distances: [arm+hand vs table, arm+hand vs object, hand vs table, hand vs object]
@@ -329,6 +335,15 @@ class CollisionWorld:
                     dmin[slot + 2] = min_optional(dmin[slot + 2], d)
         reasons = [REASON_OF[c] for c in CATEGORY_ORDER if c in cats]
         return make_report(bool(hits), hits, reasons, dmin)
+
+    def _may_collide(
+        self, Q: FloatArray, selection: tuple[list[_Pair], NDArray[np.intp]], margins: dict[str, float]
+    ) -> NDArray[np.bool_]:
+        """Broad phase at every row of ``Q`` ``(W, 6)`` [rad]: ``(W, P)``, which selected pairs may collide."""
+        _, idx = selection
+        by_code = np.array([margins["table"], margins["object"], margins["self"]])
+        R, t = self._broad.joint_placements(self._model, self._data, Q)
+        return self._broad.candidates(R, t, self._pair_a[idx], self._pair_b[idx], by_code[self._pair_category[idx]])
 
     def check_waypoints(
         self,
@@ -362,8 +377,12 @@ class CollisionWorld:
         first: int | None = None
         dmin: list[float | None] = [None, None, None, None]
         checked = 0
+        masks = self._may_collide(Q, selection, m)  # every waypoint at once
         for i, q in enumerate(Q):
-            r = self._check(q, selection, m, distances)
+            if not distances and not masks[i].any():
+                checked += 1  # nothing can collide here and no distance is asked: free
+                continue
+            r = self._check(q, selection, m, distances, masks[i])
             checked += 1
             for j, d in enumerate(
                 (

@@ -1,5 +1,7 @@
-"""Pure geometry: rigid transforms and poses, the minimum-volume enclosing ellipsoid, principal component analysis."""
+"""Pure geometry: rigid transforms and poses, the minimum-volume enclosing ellipsoid, principal component analysis,
+and a cache keyed by array content."""
 
+from softsig_service.geometry.content_cache import ContentCache, content_digest
 from softsig_service.geometry.ellipsoid import Ellipsoid, EllipsoidBatch, mvee, mvee_batch
 from softsig_service.geometry.pca import PrincipalComponents, orient_axes, principal_components
 from softsig_service.geometry.transforms import (
@@ -35,6 +37,7 @@ from softsig_service.geometry.transforms import (
 )
 
 __all__ = [
+    "ContentCache",
     "Ellipsoid",
     "EllipsoidBatch",
     "Pose",
@@ -45,6 +48,7 @@ __all__ = [
     "check_rotation",
     "check_transform",
     "compose",
+    "content_digest",
     "invert",
     "make_transform",
     "matrix_to_quat",

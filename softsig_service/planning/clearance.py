@@ -15,7 +15,7 @@ import coal
 import numpy as np
 from numpy.typing import NDArray
 
-from softsig_service.arm.shapes import HandShape, object_geometry
+from softsig_service.arm.shapes import HandShape, local_aabb, object_geometry
 from softsig_service.objects import TableObject
 
 TABLE_HALF_THICKNESS = 0.05
@@ -56,7 +56,7 @@ class HandGeometry:
     def __init__(self, hand_shapes: Sequence[HandShape]) -> None:
         self.shapes = [(s.geometry(), np.asarray(s.pose_in_hand)) for s in hand_shapes]
         for geom, _ in self.shapes:
-            geom.computeLocalAABB()
+            local_aabb(geom)
         n = len(self.shapes)
         self.rotations = np.array([T[:3, :3] for _, T in self.shapes]).reshape(n, 3, 3)
         self.origins = np.array([T[:3, 3] for _, T in self.shapes]).reshape(n, 3)
@@ -86,7 +86,7 @@ class HandGeometry:
 
 
 class HandClearance:
-    """Distances [m] from the open hand's primitives to the table and one object.
+    """Distances [m] from the open hand's primitives to the table and one object (one per plan and thread).
 
     ``hand`` is the hand's :class:`HandGeometry` (built from ``hand_shapes`` when not given); the object's coal
     geometry comes from :func:`~softsig_service.arm.shapes.object_geometry` (a mesh's is built once per content).
@@ -114,8 +114,7 @@ class HandClearance:
         self._object_R = np.eye(3)
         self._object_half = np.zeros(3)
         if obj is not None:
-            geom = object_geometry(obj.primitive())
-            geom.computeLocalAABB()
+            geom = local_aabb(object_geometry(obj.primitive()))
             T_obj = obj.primitive_pose
             self._object = (geom, _tf(T_obj))
             lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
@@ -124,6 +123,7 @@ class HandClearance:
             self._object_half = 0.5 * (hi - lo)
             self._object_radius = float(geom.aabb_radius)
         self._req = coal.DistanceRequest()
+        self._last: tuple[bytes, tuple[float, float]] | None = None  # the last pose asked and its answer
 
     def distances(self, T_world_hand: NDArray[np.float64]) -> tuple[float, float]:
         """(to the table, to the object) [m]; negative inside; +inf for a missing object.
@@ -133,6 +133,9 @@ class HandClearance:
         below it), for the object the gap between the shape's bounding sphere and the object's bounding box (signed
         distance in the object's primitive frame) or bounding sphere, whichever is larger.
         """
+        key = T_world_hand.tobytes()
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]  # the descent asks again at the pose where it stopped
         centres = self._centres @ T_world_hand[:3, :3].T + T_world_hand[:3, 3]
         bound_table = self._hand.lowest_points(T_world_hand) - self._table_height - _TABLE_BOUND_SLACK
         poses: dict[int, coal.Transform3s] = {}  # shape poses, built once per call for both queries
@@ -145,6 +148,7 @@ class HandClearance:
             gap = np.maximum(box_sdf, np.linalg.norm(offset, axis=1) - self._object_radius)
             gap -= self._radii
             d_obj = self._nearest(T_world_hand, poses, gap, *self._object)
+        self._last = (key, (d_table, d_obj))
         return d_table, d_obj
 
     def _nearest(

@@ -215,7 +215,7 @@ class Planner:
 
         t_ik = t_col = 0.0
         world = self._world(model, obj.table_height)
-        world.set_object(obj.primitive(), obj.primitive_pose)
+        world.set_object_unchecked(obj.primitive(), obj.primitive_pose)
         clearance = HandClearance(model.shapes, obj, obj.table_height, self._hand(model))
         for c in candidates:
             if c.reasons:
@@ -300,7 +300,7 @@ class Planner:
         c.T_pre = c.T.copy()
         c.T_pre[:3, 3] -= c.T[:3, 2] * req.approach_distance
         world = self._world(model, req.obj.table_height)
-        world.set_object(req.obj.primitive(), req.obj.primitive_pose)
+        world.set_object_unchecked(req.obj.primitive(), req.obj.primitive_pose)
         self._solve_grasp(c, q_now)
         if not c.reasons:
             self._finish(c, req, world)
