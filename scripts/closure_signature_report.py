@@ -19,7 +19,8 @@ import numpy as np
 
 from softsig_service.hands.closure import simulate_closure
 from softsig_service.hands.model import builtin_hand_names, load_hand
-from softsig_service.signatures.closure import ClosureSignature, compute_closure_signature
+from softsig_service.signatures.closure import compute_closure_signature
+from softsig_service.signatures.closure_types import ClosureSignature
 
 
 def fmt_vec(v: np.ndarray) -> str:

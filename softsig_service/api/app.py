@@ -25,11 +25,13 @@ from starlette.concurrency import run_in_threadpool
 
 from softsig_service import __version__
 from softsig_service.api.context import AppContext
+from softsig_service.api.idempotency import IdempotencyMiddleware
 from softsig_service.api.logging import RequestContextMiddleware
 from softsig_service.api.problems import BodyLimitMiddleware, install_problem_handlers
 from softsig_service.config import Settings
 from softsig_service.registry import repository as repo
 from softsig_service.registry.db import Registry
+from softsig_service.registry.idempotency import purge_expired_keys
 from softsig_service.services.compute import ComputePool
 from softsig_service.services.job_kinds import default_job_kinds, register_builtin_hands
 from softsig_service.services.jobs import JobKind, JobManager
@@ -57,6 +59,7 @@ def _startup(settings: Settings, registry: Registry) -> Any:
     """Blocking startup work (run in a thread): built-in hands, the planner and its warm-up."""
     from softsig_service.planning.planner import Planner, planning_model
 
+    purge_expired_keys(registry)
     done = register_builtin_hands(registry, settings)
     added = [n for n, what in done.items() if what == "added"]
     if added:
@@ -122,6 +125,7 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
         ],
     )
     install_problem_handlers(app)
+    app.add_middleware(IdempotencyMiddleware)  # inside the body limit: a replayed request's body is counted too
     app.add_middleware(
         BodyLimitMiddleware,
         max_body_bytes=settings.max_body_bytes,

@@ -41,12 +41,12 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import Receive, Scope, Send
 
-from softsig_service.api.schemas import UNION_TAGS
 from softsig_service.errors import (
     ServiceBusy,
     SoftsigError,
     Unauthorized,
 )
+from softsig_service.objects.schema import UNION_TAGS
 from softsig_service.services.problems import (
     PROBLEM_MEDIA_TYPE,
     TITLES,
@@ -55,6 +55,7 @@ from softsig_service.services.problems import (
     slug_of,
     softsig_problem,
 )
+from softsig_service.validation import error_choices, field_path
 
 
 def problem_response(status: int, body: dict[str, Any], headers: dict[str, str] | None = None) -> JSONResponse:
@@ -76,35 +77,6 @@ async def _softsig_handler(request: Request, exc: Exception) -> JSONResponse:
     return problem_response(status, body, headers)
 
 
-def field_path(loc: tuple[int | str, ...] | list[int | str]) -> tuple[str, str]:
-    """(location, dotted field path) of a pydantic/FastAPI error location.
-
-    ``("body", "object", "box", "size", 2)`` -> ``("body", "object.size[2]")``: the location (body, query, path,
-    header) is split off and discriminator tags are left out. The body itself is ``"$"``.
-    """
-    parts = list(loc)
-    where = str(parts.pop(0)) if parts and parts[0] in ("body", "query", "path", "header", "cookie") else "body"
-    out = ""
-    for k, part in enumerate(parts):
-        if isinstance(part, int):
-            out += f"[{part}]"
-        elif part in UNION_TAGS and (k == 0 or isinstance(parts[k - 1], str)) and k < len(parts) - 1:
-            continue
-        else:
-            out += ("." if out else "") + str(part)
-    return where, out or "$"
-
-
-def _choices(err: dict[str, Any]) -> list[str] | None:
-    ctx = err.get("ctx") or {}
-    for key in ("expected", "expected_tags"):
-        if key in ctx:
-            found = re.findall(r"'([^']*)'", str(ctx[key]))
-            if found:
-                return sorted(found)
-    return None
-
-
 async def _validation_handler(request: Request, exc: Exception) -> JSONResponse:
     assert isinstance(exc, RequestValidationError)
     errors = list(exc.errors())
@@ -117,7 +89,7 @@ async def _validation_handler(request: Request, exc: Exception) -> JSONResponse:
         return problem_response(400, body)
     items = []
     for e in errors:
-        where, path = field_path(tuple(e.get("loc", ())))
+        where, path = field_path(tuple(e.get("loc", ())), UNION_TAGS)
         if e.get("type") in ("union_tag_invalid", "union_tag_not_found"):
             tag = str((e.get("ctx") or {}).get("discriminator", "")).strip("'\"")
             if tag:  # the offending field is the discriminator itself
@@ -125,7 +97,7 @@ async def _validation_handler(request: Request, exc: Exception) -> JSONResponse:
         item: dict[str, Any] = {"field": path, "location": where, "message": e.get("msg", ""), "type": e.get("type")}
         if e.get("type") != "missing":
             item["value"] = short_value(e.get("input"))
-        choices = _choices(e)
+        choices = error_choices(e)
         if choices:
             item["choices"] = choices
         items.append(item)

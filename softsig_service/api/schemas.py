@@ -18,114 +18,22 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from softsig_service.objects.schema import (
+    ObjectSpec,
+    Strict,
+)
+
 HAND_NAME_PATTERN = r"^[a-z][a-z0-9_\-]{0,63}$"
 """Names of hands (the hand manifest's ``name`` rule)."""
 
 HandName = Annotated[str, Field(pattern=HAND_NAME_PATTERN, description="a registered hand's name")]
-Length = Annotated[float, Field(gt=0.0, le=5.0, description="[m]")]
-Coordinate = Annotated[float, Field(ge=-10.0, le=10.0, description="[m]")]
-Angle = Annotated[float, Field(ge=-100.0, le=100.0, description="[rad]")]
 JointAngle = Annotated[float, Field(ge=-7.0, le=7.0, description="[rad]")]
-
-
-class Strict(BaseModel):
-    """Base of request bodies: unknown fields, NaN and infinities are errors."""
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class Out(BaseModel):
     """Base of response bodies: extra keys pass through."""
 
     model_config = ConfigDict(extra="allow")
-
-
-# ----------------------------------------------------------------------------------------------------------
-# objects (the JSON of softsig_service.objects.object_from_json)
-# ----------------------------------------------------------------------------------------------------------
-
-
-class ObjectPose(Strict):
-    """Placement of an object on the table: centre (x, y) [m] in ``base_link``, ``yaw`` [rad] about world z, and
-    optionally the centre height ``z`` [m] (default: resting on the table)."""
-
-    x: Coordinate = 0.5
-    y: Coordinate = 0.0
-    yaw: Angle = 0.0
-    z: Coordinate | None = None
-
-
-class _ObjectBase(Strict):
-    mass: float = Field(gt=0.0, le=1000.0, description="[kg]")
-    friction: float = Field(1.0, gt=0.0, le=10.0, description="sliding friction coefficient")
-    name: str = Field("", max_length=64)
-    pose: ObjectPose = Field(default_factory=ObjectPose)
-
-
-class BoxSpec(_ObjectBase):
-    """A box of full side lengths ``size`` (x, y, z) [m] in the object frame."""
-
-    kind: Literal["box"]
-    size: tuple[Length, Length, Length]
-
-
-class CylinderSpec(_ObjectBase):
-    """A cylinder; lying (axis = object x, default) or standing (axis = object z)."""
-
-    kind: Literal["cylinder"]
-    radius: Length
-    length: Length
-    orientation: Literal["lying", "standing"] = "lying"
-
-
-class SphereSpec(_ObjectBase):
-    """A sphere of ``radius`` [m]."""
-
-    kind: Literal["sphere"]
-    radius: Length
-
-
-class EllipsoidSpec(_ObjectBase):
-    """An ellipsoid of semi-axes ``radii`` (x, y, z) [m]."""
-
-    kind: Literal["ellipsoid"]
-    radii: tuple[Length, Length, Length]
-
-
-class MeshSpec(_ObjectBase):
-    """A triangle mesh: ``vertices`` [m] in the object frame and ``faces`` (0-based vertex indices)."""
-
-    kind: Literal["mesh"]
-    vertices: list[tuple[Coordinate, Coordinate, Coordinate]] = Field(min_length=4, max_length=100_000)
-    faces: list[tuple[Annotated[int, Field(ge=0)], Annotated[int, Field(ge=0)], Annotated[int, Field(ge=0)]]] = Field(
-        min_length=1, max_length=200_000
-    )
-
-
-class BuiltinObjectSpec(Strict):
-    """One of the objects of docs/design.md §7 (box, apple, cylinder), optionally with another mass, friction or
-    pose."""
-
-    kind: Literal["builtin"]
-    name: Literal["box", "apple", "cylinder"]
-    mass: float | None = Field(None, gt=0.0, le=1000.0, description="[kg]")
-    friction: float | None = Field(None, gt=0.0, le=10.0)
-    pose: ObjectPose | None = None
-
-
-ObjectSpec = Annotated[
-    BoxSpec | CylinderSpec | SphereSpec | EllipsoidSpec | MeshSpec | BuiltinObjectSpec,
-    Field(discriminator="kind"),
-]
-UNION_TAGS: frozenset[str] = frozenset(
-    {"box", "cylinder", "sphere", "ellipsoid", "mesh", "builtin", "closure", "stiffness"}
-)
-"""Discriminator values: pydantic puts them in error locations; problems.py leaves them out of field paths."""
-
-
-def object_json(spec: BaseModel) -> dict[str, Any]:
-    """The object JSON of an :data:`ObjectSpec` (unset optional keys left out)."""
-    return spec.model_dump(exclude_none=True)
 
 
 # ----------------------------------------------------------------------------------------------------------

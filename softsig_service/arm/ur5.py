@@ -37,7 +37,8 @@ from softsig_service.arm.numeric_ik import levenberg_marquardt
 from softsig_service.arm.robots_dir import SRDF_RELATIVE, URDF_RELATIVE, find_robots_dir
 from softsig_service.arm.ur_ik import URParameters, ur_parameters
 from softsig_service.errors import FrameNotFound, InvalidInput
-from softsig_service.geometry.transforms import as_finite_array, check_transform
+from softsig_service.geometry.checks import as_finite_array
+from softsig_service.geometry.transforms import check_transform
 
 FloatArray = NDArray[np.float64]
 

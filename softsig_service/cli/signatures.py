@@ -37,7 +37,8 @@ def signature_closure(
     Everything is in the hand frame; the ellipsoid criterion is in the JSON's ``params.criterion``.
     """
     from softsig_service.errors import InvalidInput
-    from softsig_service.signatures.closure import METHODS, check_criterion, compute_closure_signature
+    from softsig_service.signatures.closure import check_criterion, compute_closure_signature
+    from softsig_service.signatures.closure_types import METHODS
 
     with _errors():
         if method not in METHODS:

@@ -104,7 +104,7 @@ class CampaignSpec:
     def __post_init__(self) -> None:
         from softsig_service.objects import BUILTIN_NAMES
         from softsig_service.planning.planner import PLACEMENTS
-        from softsig_service.signatures.closure import CRITERIA, METHODS
+        from softsig_service.signatures.closure_types import CRITERIA, METHODS
 
         for name, value, choices in (("cs_method", self.cs_method, METHODS), ("criterion", self.criterion, CRITERIA),
                                      ("placement", self.placement, PLACEMENTS)):  # fmt: skip

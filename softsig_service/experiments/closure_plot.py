@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.ellipsoid import Ellipsoid
 from softsig_service.hands.trajectory import ClosureTrajectory
-from softsig_service.signatures.closure import ClosureSignature
+from softsig_service.signatures.closure_types import ClosureSignature
 
 PLOT_SUFFIXES: tuple[str, ...] = (".png", ".pdf", ".svg")
 

@@ -1,19 +1,11 @@
-"""Pure geometry: rigid transforms and poses, the minimum-volume enclosing ellipsoid, principal component analysis,
-and a cache keyed by array content."""
+"""Pure geometry: rigid transforms and poses, quaternions, the minimum-volume enclosing ellipsoid, principal
+component analysis, and a cache keyed by array content."""
 
+from softsig_service.geometry.checks import as_finite_array, check_rotation, wire_number
 from softsig_service.geometry.content_cache import ContentCache, content_digest
 from softsig_service.geometry.ellipsoid import Ellipsoid, EllipsoidBatch, mvee, mvee_batch
 from softsig_service.geometry.pca import PrincipalComponents, orient_axes, principal_components
-from softsig_service.geometry.transforms import (
-    Pose,
-    apply,
-    as_finite_array,
-    axis_angle_to_matrix,
-    check_rotation,
-    check_transform,
-    compose,
-    invert,
-    make_transform,
+from softsig_service.geometry.quaternions import (
     matrix_to_quat,
     quat_angle_between,
     quat_conjugate,
@@ -22,6 +14,17 @@ from softsig_service.geometry.transforms import (
     quat_normalize,
     quat_to_matrix,
     quat_to_wire,
+    wxyz_to_xyzw,
+    xyzw_to_wxyz,
+)
+from softsig_service.geometry.transforms import (
+    Pose,
+    apply,
+    axis_angle_to_matrix,
+    check_transform,
+    compose,
+    invert,
+    make_transform,
     rot_x,
     rot_y,
     rot_z,
@@ -31,8 +34,6 @@ from softsig_service.geometry.transforms import (
     transform_from_quat,
     translation,
     wrap_angle,
-    wxyz_to_xyzw,
-    xyzw_to_wxyz,
     yaw_of,
 )
 
@@ -71,6 +72,7 @@ __all__ = [
     "rpy_to_matrix",
     "transform_from_quat",
     "translation",
+    "wire_number",
     "wrap_angle",
     "wxyz_to_xyzw",
     "xyzw_to_wxyz",

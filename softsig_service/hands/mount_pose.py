@@ -17,15 +17,8 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from softsig_service.geometry.transforms import (
-    invert,
-    make_transform,
-    matrix_to_quat,
-    quat_from_wire,
-    quat_to_matrix,
-    quat_to_wire,
-    rpy_to_matrix,
-)
+from softsig_service.geometry.quaternions import matrix_to_quat, quat_from_wire, quat_to_matrix, quat_to_wire
+from softsig_service.geometry.transforms import invert, make_transform, rpy_to_matrix
 from softsig_service.hands.manifest import MountPose
 
 _CHILD_KINDS = ("bodies", "geoms", "sites", "cameras", "lights", "frames")

@@ -1,102 +1,69 @@
 """Constructors of :class:`~softsig_service.objects.shape.TableObject` by kind: box, cylinder, sphere,
 ellipsoid and triangle mesh, each resting on the table at a pose.
 
-Frames and units: :mod:`softsig_service.objects.shape`.
+Every constructor takes the same keyword arguments (:class:`Placement`): ``friction`` (default 1.0), the pose
+``x`` [m] (default 0.5), ``y`` [m] (default 0), ``yaw`` [rad] (default 0), ``table_height`` [m] (default 0), an
+explicit centre height ``z`` [m] (default: resting on the table) and a ``name`` (default the kind). Frames and
+units: :mod:`softsig_service.objects.shape`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any, TypedDict
 
 import numpy as np
 from numpy.typing import ArrayLike
+from typing_extensions import Unpack
 
 from softsig_service.errors import InvalidInput
 from softsig_service.objects.shape import DEFAULT_FRICTION, DEFAULT_X, DEFAULT_Y, TableObject
 
 
-def box(
-    size: Sequence[float],
-    mass: float,
-    *,
-    friction: float = DEFAULT_FRICTION,
-    x: float = DEFAULT_X,
-    y: float = DEFAULT_Y,
-    yaw: float = 0.0,
-    table_height: float = 0.0,
-    z: float | None = None,
-    name: str = "box",
-) -> TableObject:
+class Placement(TypedDict, total=False):
+    """Where and how an object rests on the table (the keyword arguments of every constructor)."""
+
+    friction: float
+    x: float
+    y: float
+    yaw: float
+    table_height: float
+    z: float | None
+    name: str
+
+
+def _make(kind: str, dims: tuple[float, ...], mass: float, placement: Placement, **shape: Any) -> TableObject:
+    p = placement
+    return TableObject(
+        kind, dims, mass, p.get("friction", DEFAULT_FRICTION), p.get("x", DEFAULT_X), p.get("y", DEFAULT_Y),  # type: ignore[arg-type]
+        p.get("yaw", 0.0), p.get("table_height", 0.0), p.get("z"), name=p.get("name", kind), **shape,
+    )  # fmt: skip
+
+
+def box(size: Sequence[float], mass: float, **placement: Unpack[Placement]) -> TableObject:
     """A box of full sizes ``size`` = (sx, sy, sz) [m] along the object's x, y, z, resting on the table."""
-    return TableObject("box", tuple(size), mass, friction, x, y, yaw, table_height, z, name=name)
+    return _make("box", tuple(size), mass, placement)
 
 
 def cylinder(
-    radius: float,
-    length: float,
-    mass: float,
-    *,
-    standing: bool = False,
-    friction: float = DEFAULT_FRICTION,
-    x: float = DEFAULT_X,
-    y: float = DEFAULT_Y,
-    yaw: float = 0.0,
-    table_height: float = 0.0,
-    z: float | None = None,
-    name: str = "cylinder",
+    radius: float, length: float, mass: float, *, standing: bool = False, **placement: Unpack[Placement]
 ) -> TableObject:
     """A cylinder of ``radius`` and ``length`` [m], lying with its axis along the object's x (centre at
     ``table_height + radius``), or ``standing`` with its axis vertical."""
-    return TableObject(
-        "cylinder", (radius, length), mass, friction, x, y, yaw, table_height, z, standing=standing, name=name
-    )
+    return _make("cylinder", (radius, length), mass, placement, standing=standing)
 
 
-def sphere(
-    radius: float,
-    mass: float,
-    *,
-    friction: float = DEFAULT_FRICTION,
-    x: float = DEFAULT_X,
-    y: float = DEFAULT_Y,
-    yaw: float = 0.0,
-    table_height: float = 0.0,
-    z: float | None = None,
-    name: str = "sphere",
-) -> TableObject:
+def sphere(radius: float, mass: float, **placement: Unpack[Placement]) -> TableObject:
     """A sphere of ``radius`` [m] resting on the table."""
-    return TableObject("sphere", (radius,), mass, friction, x, y, yaw, table_height, z, name=name)
+    return _make("sphere", (radius,), mass, placement)
 
 
-def ellipsoid(
-    radii: Sequence[float],
-    mass: float,
-    *,
-    friction: float = DEFAULT_FRICTION,
-    x: float = DEFAULT_X,
-    y: float = DEFAULT_Y,
-    yaw: float = 0.0,
-    table_height: float = 0.0,
-    z: float | None = None,
-    name: str = "ellipsoid",
-) -> TableObject:
+def ellipsoid(radii: Sequence[float], mass: float, **placement: Unpack[Placement]) -> TableObject:
     """An ellipsoid with semi-axes ``radii`` = (rx, ry, rz) [m] along the object's x, y, z, on the table."""
-    return TableObject("ellipsoid", tuple(radii), mass, friction, x, y, yaw, table_height, z, name=name)
+    return _make("ellipsoid", tuple(radii), mass, placement)
 
 
-def mesh(
-    vertices: ArrayLike,
-    faces: ArrayLike,
-    mass: float,
-    *,
-    friction: float = DEFAULT_FRICTION,
-    x: float = DEFAULT_X,
-    y: float = DEFAULT_Y,
-    yaw: float = 0.0,
-    table_height: float = 0.0,
-    z: float | None = None,
-    name: str = "mesh",
-) -> TableObject:
+def mesh(vertices: ArrayLike, faces: ArrayLike, mass: float, **placement: Unpack[Placement]) -> TableObject:
     """A triangle mesh (vertices ``(N, 3)`` [m], faces ``(M, 3)`` indices), z up as given; the object frame is
     re-centred on the vertices' bounding box and the mesh rests on the table."""
     try:
@@ -104,4 +71,4 @@ def mesh(
         F = np.asarray(faces)
     except (TypeError, ValueError) as exc:
         raise InvalidInput("vertices/faces must be rectangular number arrays", field="object.vertices") from exc
-    return TableObject("mesh", (), mass, friction, x, y, yaw, table_height, z, vertices=V, faces=F, name=name)
+    return _make("mesh", (), mass, placement, vertices=V, faces=F)

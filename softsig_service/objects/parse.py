@@ -9,10 +9,12 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from pydantic import ValidationError
 
 from softsig_service.errors import InvalidInput
 from softsig_service.objects.checks import check_mesh, check_number, check_positive, check_positive_list
 from softsig_service.objects.constructors import box, cylinder, ellipsoid, mesh, sphere
+from softsig_service.objects.schema import OBJECT_SPEC, UNION_TAGS
 from softsig_service.objects.shape import (
     BUILTIN_NAMES,
     CYLINDER_ORIENTATIONS,
@@ -21,6 +23,7 @@ from softsig_service.objects.shape import (
     DEFAULT_Y,
     TableObject,
 )
+from softsig_service.validation import invalid_input
 
 _BUILTINS: dict[str, dict[str, Any]] = {
     # docs/design.md §7: default objects of the reference experiment (no sizes are published for the paper's objects)
@@ -28,6 +31,8 @@ _BUILTINS: dict[str, dict[str, Any]] = {
     "apple": {"kind": "ellipsoid", "radii": [0.040, 0.040, 0.036], "mass": 0.18},
     "cylinder": {"kind": "cylinder", "radius": 0.03, "length": 0.16, "orientation": "lying", "mass": 0.20},
 }
+OBJECT_KINDS_JSON: tuple[str, ...] = ("box", "builtin", "cylinder", "ellipsoid", "mesh", "sphere")
+"""The ``kind`` values of the object JSON."""
 
 
 def builtin_object(
@@ -47,18 +52,6 @@ def builtin_object(
     return object_from_json(spec, table_height=table_height)
 
 
-_COMMON_KEYS = frozenset({"kind", "mass", "friction", "name", "pose"})
-_KIND_KEYS: dict[str, frozenset[str]] = {
-    "box": frozenset({"size"}),
-    "cylinder": frozenset({"radius", "length", "orientation"}),
-    "sphere": frozenset({"radius"}),
-    "ellipsoid": frozenset({"radii"}),
-    "mesh": frozenset({"vertices", "faces"}),
-    "builtin": frozenset(),
-}
-_POSE_KEYS = frozenset({"x", "y", "yaw", "z"})
-
-
 def object_from_json(spec: Mapping[str, Any], *, table_height: float = 0.0, field: str = "object") -> TableObject:
     """Build a :class:`TableObject` from a JSON spec (schema in the module docstring).
 
@@ -67,21 +60,19 @@ def object_from_json(spec: Mapping[str, Any], *, table_height: float = 0.0, fiel
     if not isinstance(spec, Mapping):
         raise InvalidInput("expected an object spec (a JSON object)", field=field, value=spec)
     kind = spec.get("kind")
-    if kind not in _KIND_KEYS:
-        raise InvalidInput(f"unknown object kind {kind!r}", field=f"{field}.kind", value=kind, choices=_KIND_KEYS)
-    allowed = _COMMON_KEYS | _KIND_KEYS[kind]
-    unknown = sorted(set(spec) - allowed)
-    if unknown:
-        raise InvalidInput(f"unknown keys {unknown} for a {kind}", field=field, value=unknown, choices=allowed)
+    if kind not in OBJECT_KINDS_JSON:
+        raise InvalidInput(
+            f"unknown object kind {kind!r}", field=f"{field}.kind", value=kind, choices=OBJECT_KINDS_JSON
+        )
+    try:  # the one schema of objects (keys, types, ranges), shared with the REST API
+        OBJECT_SPEC.validate_python(dict(spec))
+    except ValidationError as exc:
+        raise invalid_input(exc, field, UNION_TAGS) from None
 
     def need(key: str) -> Any:
-        if key not in spec:
-            raise InvalidInput(f"a {kind} needs {key!r}", field=f"{field}.{key}")
         return spec[key]
 
     name = spec.get("name", "")
-    if not isinstance(name, str):
-        raise InvalidInput("name must be a string", field=f"{field}.name", value=name)
 
     if kind == "builtin":
         if name not in _BUILTINS:
@@ -98,9 +89,6 @@ def object_from_json(spec: Mapping[str, Any], *, table_height: float = 0.0, fiel
     pose = spec.get("pose", {})
     if not isinstance(pose, Mapping):
         raise InvalidInput("pose must be {x, y, yaw[, z]}", field=f"{field}.pose", value=pose)
-    bad = sorted(set(pose) - _POSE_KEYS)
-    if bad:
-        raise InvalidInput(f"unknown pose keys {bad}", field=f"{field}.pose", value=bad, choices=_POSE_KEYS)
     x = check_number(pose.get("x", DEFAULT_X), f"{field}.pose.x")
     y = check_number(pose.get("y", DEFAULT_Y), f"{field}.pose.y")
     yaw = check_number(pose.get("yaw", 0.0), f"{field}.pose.yaw")

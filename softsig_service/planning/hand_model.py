@@ -19,7 +19,8 @@ from softsig_service.geometry.ellipsoid import mvee
 from softsig_service.hands.closure import simulate_closure
 from softsig_service.hands.collision_shapes import hand_collision_shapes
 from softsig_service.hands.model import load_hand
-from softsig_service.signatures.closure import ClosureSignature, Criterion, compute_closure_signature
+from softsig_service.signatures.closure import compute_closure_signature
+from softsig_service.signatures.closure_types import ClosureSignature, Criterion
 
 Placement = Literal["open_centre", "grasp_centre", "previous"]
 PLACEMENTS: tuple[Placement, ...] = ("open_centre", "grasp_centre", "previous")

@@ -36,7 +36,9 @@ from softsig_service.arm.collision import CollisionWorld
 from softsig_service.arm.ur5 import HOME_Q, UR5, load_ur5
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
-from softsig_service.geometry.transforms import Pose, as_finite_array, matrix_to_quat
+from softsig_service.geometry.checks import as_finite_array
+from softsig_service.geometry.quaternions import matrix_to_quat
+from softsig_service.geometry.transforms import Pose
 from softsig_service.objects import TableObject
 from softsig_service.planning.clearance import HandClearance, HandGeometry
 from softsig_service.planning.hand_model import (
@@ -48,7 +50,7 @@ from softsig_service.planning.hand_model import (
 )
 from softsig_service.planning.strategies import STRATEGIES, axis_angle_between_lines, strategy_s_poses
 from softsig_service.planning.wrist_pose import solve_wrist_pose_unchecked
-from softsig_service.signatures.closure import CRITERIA, Criterion
+from softsig_service.signatures.closure_types import CRITERIA, Criterion
 
 START_HEIGHT = 0.5
 """[m] the descent starts this far above the object's centre along the approach."""

@@ -15,6 +15,9 @@ SQLAlchemy docs recommend): reads start a deferred ``BEGIN``; write sessions (:m
 ``BEGIN IMMEDIATE``, taking SQLite's write lock up front so that two writers queue on the busy timeout rather than
 deadlock on a lock upgrade. On PostgreSQL both are plain transactions; signature versions are allocated with a
 row-locking ``UPDATE ... RETURNING`` there as here.
+
+The schema is made and upgraded by Alembic migrations (:mod:`softsig_service.registry.migrate`), in a write
+transaction, whenever a :class:`Registry` is opened with ``create=True`` (the service's start).
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from sqlalchemy import Engine, create_engine, event, text
 from sqlalchemy.engine import make_url
 from sqlalchemy.orm import Session, sessionmaker
 
-from softsig_service.registry.models import Base
+from softsig_service.registry import migrate
 
 _WRITE_OPTION = "softsig_write"
 
@@ -66,7 +69,7 @@ def make_engine(url: str, *, busy_timeout: float = 10.0) -> Engine:
 
 
 class Registry:
-    """The database of one service: engine, session factories and schema creation.
+    """The database of one service: engine, session factories and schema upgrades.
 
     ``read()`` gives a session for queries; ``write()`` a session in a write transaction that commits on success
     and rolls back on an exception.
@@ -79,11 +82,16 @@ class Registry:
         self._read = sessionmaker(self.engine, expire_on_commit=False)
         self._write = sessionmaker(self.engine.execution_options(**{_WRITE_OPTION: True}), expire_on_commit=False)
         if create:
-            self.create_schema()
+            self.upgrade_schema()
 
-    def create_schema(self) -> None:
-        """Create missing tables (idempotent)."""
-        Base.metadata.create_all(self.engine)
+    def upgrade_schema(self) -> str:
+        """Make or upgrade the schema to the newest revision this code knows (idempotent); returns that revision.
+
+        Raises :class:`~softsig_service.registry.migrate.SchemaTooNew` when the database was written by a newer
+        softsig.
+        """
+        with self.engine.execution_options(**{_WRITE_OPTION: True}).begin() as conn:
+            return migrate.upgrade(conn)
 
     @contextmanager
     def read(self) -> Iterator[Session]:

@@ -2,8 +2,6 @@
 algebra, marker files."""
 
 from softsig_service.signatures.closure import (
-    ClosureSignature,
-    EllipsoidAxisSeries,
     check_criterion,
     compute_closure_signature,
     distinctness_ratio,
@@ -12,6 +10,7 @@ from softsig_service.signatures.closure import (
     mesh_closure_signature,
     pca_closure_signature,
 )
+from softsig_service.signatures.closure_types import ClosureSignature, EllipsoidAxisSeries
 from softsig_service.signatures.markers import load_markers, parse_markers_csv, parse_markers_json
 from softsig_service.signatures.matrix_checks import (
     checked_matrix,

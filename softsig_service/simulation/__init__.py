@@ -1,6 +1,5 @@
 """Everything that steps MuJoCo: the validation scene and rollout, the grasp of an object by a hand, its stiffness
-matrices and the pull test.
-"""
+matrices and the pull test."""
 
 from softsig_service.simulation.grasp import grasp_object
 from softsig_service.simulation.grasp_contacts import contact_forces, net_contact_wrench
@@ -25,7 +24,8 @@ from softsig_service.simulation.rollout import (
     line_ik,
     simulate,
 )
-from softsig_service.simulation.scene import ContactSummary, Scene, build_scene
+from softsig_service.simulation.scene import build_scene
+from softsig_service.simulation.scene_model import ContactSummary, Scene
 from softsig_service.simulation.stiffness_signature import (
     break_force_table,
     compute_stiffness_signature,

@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput, SolverError
-from softsig_service.geometry.transforms import matrix_to_quat, quat_normalize, quat_to_matrix
+from softsig_service.geometry.quaternions import matrix_to_quat, quat_normalize, quat_to_matrix
 from softsig_service.hands.closure import prepare_data, run_closure
 from softsig_service.hands.model import HandModel
 from softsig_service.objects import TableObject

@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from softsig_service.config import Settings, default_settings
 from softsig_service.errors import InvalidInput, SolverError
-from softsig_service.geometry.transforms import matrix_to_quat
+from softsig_service.geometry.quaternions import matrix_to_quat
 from softsig_service.hands.closure import simulate_closure
 from softsig_service.hands.model import HandModel, compile_hand
 from softsig_service.objects import TableObject, builtin_object, object_from_json

@@ -73,7 +73,7 @@ from softsig_service.arm.ur5 import UR5
 from softsig_service.errors import InvalidInput
 from softsig_service.hands.closure import closure_command
 from softsig_service.objects import TableObject
-from softsig_service.simulation.scene import Scene
+from softsig_service.simulation.scene_model import Scene
 
 FloatArray = NDArray[np.float64]
 _BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)

@@ -41,196 +41,38 @@ object-table contacts max(object, :data:`TABLE_FRICTION`).
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import threading
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
 
 import mujoco
 import numpy as np
-from numpy.typing import NDArray
 
 from softsig_service.arm.robots_dir import URDF_RELATIVE, find_robots_dir
 from softsig_service.arm.ur5 import FLANGE_FRAME, JOINT_NAMES
 from softsig_service.config import Settings, default_settings
 from softsig_service.errors import InvalidHandModel
-from softsig_service.geometry.transforms import matrix_to_quat
 from softsig_service.hands.manifest import load_manifest
 from softsig_service.hands.model import HandModel, compile_hand, resolve_hand_path
 from softsig_service.objects import TableObject
 from softsig_service.simulation.object_geom import set_object_shape
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-
-HAND_PREFIX = "hand/"
-"""Prefix of every name of the attached hand (bodies, joints, geoms, actuators, ...)."""
-OBJECT_BODY = "object"
-TABLE_GEOM = "table"
-
-ARM_KP: tuple[float, ...] = (6000.0, 6000.0, 4000.0, 1500.0, 1500.0, 1500.0)
-"""Position gains of the arm's joint servos [N·m/rad] (shoulder pan, shoulder lift, elbow, wrists 1-3)."""
-ARM_KV: tuple[float, ...] = (300.0, 300.0, 200.0, 40.0, 40.0, 40.0)
-"""Velocity (damping) gains of the arm's joint servos [N·m·s/rad]."""
-ARM_ARMATURE: tuple[float, ...] = (0.5, 0.5, 0.3, 0.05, 0.05, 0.05)
-"""Reflected rotor inertia of the arm's joints [kg·m²] (harmonic drives; keeps the stiff servos stable)."""
-ARM_FORCE_LIMIT: tuple[float, ...] = (150.0, 150.0, 150.0, 28.0, 28.0, 28.0)
-"""Servo torque limits [N·m]: the URDF's effort limits."""
-
-ENV_BIT = 1
-"""Contact bit of the environment (table, object); the hands' geoms have it in their ``conaffinity``."""
-ARM_BIT = 1 << 20
-"""Contact bit of the arm's geoms (collide with table and object only)."""
-
-TABLE_FRICTION = 0.5
-"""Sliding friction of the table top (MuJoCo uses the larger of the two geoms' coefficients)."""
-TABLE_HALF_SIZE: tuple[float, float] = (0.9, 0.9)
-"""Half-sizes [m] of the table top as drawn (centred at x = 0.3 m). For contacts it is the infinite plane
-z = ``table_height`` (cheaper than a box; every reachable object lies on it)."""
-GEOM_OTHER, GEOM_OBJECT, GEOM_HAND, GEOM_ARM, GEOM_TABLE = 0, 1, 2, 3, 4
-"""Geom classes of :attr:`Scene.geom_class`."""
-OBJECT_TORSIONAL_FRICTION = 0.005
-"""[m] torsional friction of the object (``condim = 4``)."""
-OBJECT_ROLLING_FRICTION = 0.0001
-"""[m] rolling friction of the object."""
-
-
-class ContactSummary(NamedTuple):
-    """Which pairs touch: the object and the hand, an arm link and the table, an arm link and the object."""
-
-    object_hand: bool
-    arm_table: bool
-    arm_object: bool
-
-
-@dataclass(frozen=True, eq=False)
-class Scene:
-    """A compiled validation scene and the ids a rollout needs (read-only; make one ``MjData`` per trial).
-
-    Attributes:
-        model: the compiled ``MjModel`` (world = UR5 ``base_link``).
-        hand: the hand compiled alone (manifest, closure values, reference points in *its own* model).
-        hand_ref: the hand name or manifest path the scene was built from.
-        table_height: [m] z of the table top.
-        arm_qpos: qpos addresses of the six arm joints (order of :data:`~softsig_service.arm.ur5.JOINT_NAMES`).
-        arm_dof: dof addresses of the six arm joints.
-        arm_actuators: actuator ids of the six arm servos.
-        closure_actuators: scene actuator ids of the hand's closure actuators (same order as ``hand``'s).
-        closure_open, closure_closed: open and closed control values of those actuators.
-        posture_qpos: (scene qpos address, open value) to set before a posture closure starts.
-        object_body: body id of the object; object_qpos: qpos address of its free joint (xyz then quat wxyz).
-        object_geoms, hand_geoms, arm_geoms: geom ids of the object, the hand (``mount`` and below), the arm.
-        table_geom: geom id of the table.
-        flange_body: body id of ``tool0``; mount_body: body id of the hand's ``mount`` (the same frame).
-    """
-
-    model: mujoco.MjModel
-    hand: HandModel
-    hand_ref: str
-    table_height: float
-    arm_qpos: IntArray
-    arm_dof: IntArray
-    arm_actuators: IntArray
-    closure_actuators: IntArray
-    closure_open: FloatArray
-    closure_closed: FloatArray
-    posture_qpos: tuple[tuple[int, float], ...]
-    object_body: int
-    object_qpos: int
-    object_geoms: IntArray
-    hand_geoms: IntArray
-    arm_geoms: IntArray
-    table_geom: int
-    flange_body: int
-    mount_body: int
-
-    @property
-    def timestep(self) -> float:
-        """Simulation time step [s] (the hand manifest's ``simulation.timestep``)."""
-        return float(self.model.opt.timestep)
-
-    def make_data(self, q_arm: NDArray[np.float64], object_pose: NDArray[np.float64]) -> mujoco.MjData:
-        """A fresh ``MjData``: arm at ``q_arm`` [rad] (servo targets there too), hand open, object at rest at
-        ``object_pose`` (4x4 ``T_world_object``, its primitive frame as in ``TableObject.primitive_pose``)."""
-        data = mujoco.MjData(self.model)
-        data.qpos[self.arm_qpos] = q_arm
-        data.ctrl[self.arm_actuators] = q_arm
-        for adr, value in self.posture_qpos:
-            data.qpos[adr] = value
-        data.ctrl[self.closure_actuators] = self.closure_open
-        self.set_object_pose(data, object_pose)
-        mujoco.mj_forward(self.model, data)
-        return data
-
-    def set_object_pose(self, data: mujoco.MjData, T: NDArray[np.float64]) -> None:
-        """Place the object's free body at ``T`` (4x4, world) with zero velocity (call ``mj_forward`` after)."""
-        a = self.object_qpos
-        data.qpos[a : a + 3] = T[:3, 3]
-        data.qpos[a + 3 : a + 7] = matrix_to_quat(T[:3, :3])
-        dof = int(self.model.jnt_dofadr[self.model.body_jntadr[self.object_body]])
-        data.qvel[dof : dof + 6] = 0.0
-
-    def object_position(self, data: mujoco.MjData) -> FloatArray:
-        """World position [m] of the object's body frame (its centre)."""
-        return np.array(data.xpos[self.object_body])
-
-    def flange_pose(self, data: mujoco.MjData) -> FloatArray:
-        """``T_world_tool0`` (4x4) in the simulation."""
-        T = np.eye(4)
-        T[:3, :3] = data.xmat[self.flange_body].reshape(3, 3)
-        T[:3, 3] = data.xpos[self.flange_body]
-        return T
-
-    def contact_summary(self, data: mujoco.MjData) -> ContactSummary:
-        """Which classes of geoms touch in the current contacts (distance <= 0: penetrating, carrying force)."""
-        n = data.ncon
-        if n == 0:
-            return ContactSummary(False, False, False)
-        con = data.contact
-        cls = self.geom_class[con.geom[:n]]
-        cls = cls[con.dist[:n] <= 0.0]
-        c1, c2 = cls[:, 0], cls[:, 1]
-
-        def pair(a: int, b: int) -> bool:
-            return bool(np.any(((c1 == a) & (c2 == b)) | ((c1 == b) & (c2 == a))))
-
-        return ContactSummary(pair(GEOM_OBJECT, GEOM_HAND), pair(GEOM_ARM, GEOM_TABLE), pair(GEOM_ARM, GEOM_OBJECT))
-
-    def object_touches_table(self, data: mujoco.MjData) -> bool:
-        """Whether an object geom touches the table in the current contacts (distance <= 0)."""
-        n = data.ncon
-        if n == 0:
-            return False
-        con = data.contact
-        cls = self.geom_class[con.geom[:n]][con.dist[:n] <= 0.0]
-        hit = ((cls[:, 0] == GEOM_OBJECT) & (cls[:, 1] == GEOM_TABLE)) | (
-            (cls[:, 0] == GEOM_TABLE) & (cls[:, 1] == GEOM_OBJECT)
-        )
-        return bool(np.any(hit))
-
-    def object_in_flange(self, data: mujoco.MjData) -> FloatArray:
-        """Position [m] of the object's centre in the flange (``tool0`` = hand) frame."""
-        R = data.xmat[self.flange_body].reshape(3, 3)
-        return np.asarray(R.T @ (data.xpos[self.object_body] - data.xpos[self.flange_body]), dtype=np.float64)
-
-    @functools.cached_property
-    def geom_class(self) -> NDArray[np.int8]:
-        """Per geom: :data:`GEOM_OTHER`, :data:`GEOM_OBJECT`, :data:`GEOM_HAND`, :data:`GEOM_ARM` or
-        :data:`GEOM_TABLE`."""
-        cls = np.full(self.model.ngeom, GEOM_OTHER, dtype=np.int8)
-        cls[self.object_geoms] = GEOM_OBJECT
-        cls[self.hand_geoms] = GEOM_HAND
-        cls[self.arm_geoms] = GEOM_ARM
-        cls[self.table_geom] = GEOM_TABLE
-        return cls
-
-
-# ----------------------------------------------------------------------------------------------------------
-# composition
-# ----------------------------------------------------------------------------------------------------------
+from softsig_service.simulation.scene_model import (
+    ARM_ARMATURE,
+    ARM_BIT,
+    ARM_FORCE_LIMIT,
+    ARM_KP,
+    ARM_KV,
+    ENV_BIT,
+    HAND_PREFIX,
+    OBJECT_BODY,
+    OBJECT_ROLLING_FRICTION,
+    OBJECT_TORSIONAL_FRICTION,
+    TABLE_FRICTION,
+    TABLE_GEOM,
+    TABLE_HALF_SIZE,
+    Scene,
+)
 
 
 def _ur5_spec(robots_dir: Path | None = None) -> mujoco.MjSpec:

@@ -86,8 +86,8 @@ def test_a_job_may_start_worker_processes(api: TestClient) -> None:
     assert job["result"] == {"values": [1, 2, 3]}
 
 
-def test_queue_cap_and_restart_marks_unfinished_jobs(tmp_path: Path) -> None:
-    settings = make_settings(tmp_path, max_queued_jobs=2, job_workers=1)
+def test_queue_cap_and_restart_marks_unfinished_jobs(tmp_path: Path, database_url: str) -> None:
+    settings = make_settings(tmp_path, max_queued_jobs=2, job_workers=1, database_url=database_url)
     with TestClient(create_app(settings, job_kinds=TEST_JOB_KINDS)) as client:
         first = submit(client, "sleep_forever", {})
         second = submit(client, "sleep_forever", {})

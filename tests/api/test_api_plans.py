@@ -11,12 +11,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 from api_helpers import AUTH, assert_problem, make_settings
 from fastapi.testclient import TestClient
 
 from softsig_service.api.app import create_app
-from softsig_service.geometry.transforms import Pose, quat_to_matrix
-from softsig_service.objects import builtin_object
+from softsig_service.errors import InvalidInput
+from softsig_service.geometry.quaternions import quat_to_matrix
+from softsig_service.geometry.transforms import Pose
+from softsig_service.objects import builtin_object, object_from_json
 from softsig_service.planning.planner import Planner, PlanRequest
 
 BOX = {"kind": "builtin", "name": "box", "pose": {"x": 0.5, "y": 0.05, "yaw": 0.4}}
@@ -193,3 +196,23 @@ def test_body_limit(tmp_path: Path) -> None:
         assert_problem(r, 413, "body")
         small = {"hand": "pisa_iit_softhand", "object": BOX, "strategy": "S"}
         assert client.post("/v1/plans", json=small, headers=AUTH).status_code == 201
+
+
+@pytest.mark.parametrize(
+    "obj",
+    [
+        {"kind": "box", "size": [0.1, 0.1, 9.0], "mass": 1},
+        {"kind": "box", "size": [0.1, 0.1, 0.1], "mass": "0.5"},
+        {"kind": "sphere", "radius": 0.04, "mass": 0.2, "friction": False},
+        {"kind": "cylinder", "radius": 0.03, "length": 0.1, "mass": 0.2, "orientation": "upright"},
+        {"kind": "builtin", "name": "pear"},
+        {"kind": "box", "size": [0.1, 0.1, 0.1], "mass": 1, "pose": {"roll": 1.0}},
+    ],
+)
+def test_the_api_and_the_parser_share_one_object_schema(api: TestClient, obj: dict[str, Any]) -> None:
+    """An object the parser (CLI, JSON files) refuses is refused by the API, naming the same field."""
+    with pytest.raises(InvalidInput) as info:
+        object_from_json(obj)
+    body = assert_problem(api.post("/v1/plans", json={"hand": "sdm_hand", "object": obj, "strategy": "S"},
+                                   headers=AUTH), 422)  # fmt: skip
+    assert body["field"] == info.value.field

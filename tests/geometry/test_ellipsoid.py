@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.ellipsoid import DEFAULT_TOL, Ellipsoid, mvee, mvee_batch
-from softsig_service.geometry.transforms import quat_to_matrix
+from softsig_service.geometry.quaternions import quat_to_matrix
 
 FAST = settings(max_examples=40, deadline=None)
 

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from softsig_service.errors import InvalidInput
+from softsig_service.geometry import quaternions as qt
 from softsig_service.geometry import transforms as tf
 
 finite = st.floats(min_value=-1.0, max_value=1.0, allow_nan=False, allow_infinity=False)
@@ -43,70 +44,70 @@ def same_rotation(a: np.ndarray, b: np.ndarray, tol: float = 1e-9) -> bool:
 
 @given(quaternions())
 def test_wxyz_xyzw_round_trip(q: np.ndarray) -> None:
-    xyzw = tf.wxyz_to_xyzw(q)
+    xyzw = qt.wxyz_to_xyzw(q)
     assert xyzw[3] == q[0] and np.array_equal(xyzw[:3], q[1:])
-    assert np.array_equal(tf.xyzw_to_wxyz(xyzw), q)
+    assert np.array_equal(qt.xyzw_to_wxyz(xyzw), q)
 
 
 @given(quaternions())
 def test_normalize_is_unit_and_canonical(q: np.ndarray) -> None:
-    n = tf.quat_normalize(q)
+    n = qt.quat_normalize(q)
     assert math.isclose(float(np.linalg.norm(n)), 1.0, rel_tol=1e-12)
     assert n[0] >= 0.0
     assert same_rotation(n, q / np.linalg.norm(q))
-    assert np.allclose(tf.quat_normalize(-q), n, atol=1e-12)  # q and -q give the same canonical form
+    assert np.allclose(qt.quat_normalize(-q), n, atol=1e-12)  # q and -q give the same canonical form
 
 
 @given(quaternions())
 def test_quat_matrix_round_trip(q: np.ndarray) -> None:
-    R = tf.quat_to_matrix(q)
+    R = qt.quat_to_matrix(q)
     assert np.allclose(R.T @ R, np.eye(3), atol=1e-12)
     assert math.isclose(float(np.linalg.det(R)), 1.0, rel_tol=1e-12)
-    back = tf.matrix_to_quat(R)
+    back = qt.matrix_to_quat(R)
     assert back[0] >= 0.0
-    assert same_rotation(back, tf.quat_normalize(q), tol=1e-9)
-    assert np.allclose(tf.quat_to_matrix(back), R, atol=1e-12)
+    assert same_rotation(back, qt.quat_normalize(q), tol=1e-9)
+    assert np.allclose(qt.quat_to_matrix(back), R, atol=1e-12)
 
 
 @given(quaternions())
 def test_matrix_agrees_with_scipy_xyzw(q: np.ndarray) -> None:
     """SciPy takes xyzw: our wxyz -> xyzw conversion must feed it the same rotation."""
-    R_ours = tf.quat_to_matrix(q)
-    R_scipy = Rotation.from_quat(tf.wxyz_to_xyzw(tf.quat_normalize(q))).as_matrix()
+    R_ours = qt.quat_to_matrix(q)
+    R_scipy = Rotation.from_quat(qt.wxyz_to_xyzw(qt.quat_normalize(q))).as_matrix()
     assert np.allclose(R_ours, R_scipy, atol=1e-12)
-    back = tf.xyzw_to_wxyz(Rotation.from_matrix(R_ours).as_quat())
-    assert same_rotation(back, tf.quat_normalize(q))
+    back = qt.xyzw_to_wxyz(Rotation.from_matrix(R_ours).as_quat())
+    assert same_rotation(back, qt.quat_normalize(q))
 
 
 @given(quaternions())
 def test_matrix_agrees_with_pinocchio_coeffs(q: np.ndarray) -> None:
     """Pinocchio's Quaternion.coeffs() is xyzw."""
-    R = tf.quat_to_matrix(q)
+    R = qt.quat_to_matrix(q)
     coeffs = np.array(pin.Quaternion(R).coeffs())
-    assert same_rotation(tf.xyzw_to_wxyz(coeffs), tf.matrix_to_quat(R), tol=1e-9)
+    assert same_rotation(qt.xyzw_to_wxyz(coeffs), qt.matrix_to_quat(R), tol=1e-9)
 
 
 @given(quaternions())
 def test_wire_round_trip(q: np.ndarray) -> None:
-    wire = tf.quat_to_wire(q)
+    wire = qt.quat_to_wire(q)
     assert set(wire) == {"x", "y", "z", "w"}
-    n = tf.quat_normalize(q)
+    n = qt.quat_normalize(q)
     assert (wire["w"], wire["x"], wire["y"], wire["z"]) == tuple(float(v) for v in n)
-    assert np.allclose(tf.quat_from_wire(wire), n, atol=1e-15)
+    assert np.allclose(qt.quat_from_wire(wire), n, atol=1e-15)
 
 
 def test_wire_fields_are_named_not_ordered() -> None:
     # a 90 deg rotation about z: w = cos 45, z = sin 45, whatever the key order
     d = {"z": math.sqrt(0.5), "w": math.sqrt(0.5), "y": 0.0, "x": 0.0}
-    R = tf.quat_to_matrix(tf.quat_from_wire(d))
+    R = qt.quat_to_matrix(qt.quat_from_wire(d))
     assert np.allclose(R, tf.rot_z(math.pi / 2), atol=1e-12)
 
 
 @given(quaternions(), quaternions())
 def test_multiply_matches_matrix_product(a: np.ndarray, b: np.ndarray) -> None:
-    ab = tf.quat_multiply(a, b)
-    assert np.allclose(tf.quat_to_matrix(ab), tf.quat_to_matrix(a) @ tf.quat_to_matrix(b), atol=1e-12)
-    ident = tf.quat_multiply(a, tf.quat_conjugate(a))
+    ab = qt.quat_multiply(a, b)
+    assert np.allclose(qt.quat_to_matrix(ab), qt.quat_to_matrix(a) @ qt.quat_to_matrix(b), atol=1e-12)
+    ident = qt.quat_multiply(a, qt.quat_conjugate(a))
     assert np.allclose(ident, [1.0, 0.0, 0.0, 0.0], atol=1e-12)
 
 
@@ -186,7 +187,7 @@ def test_pose_matrix_and_wire_round_trip(T: np.ndarray) -> None:
     back = tf.Pose.from_wire(wire)
     assert back == pose
     assert np.allclose(back.matrix(), T, atol=1e-12)
-    assert same_rotation(tf.xyzw_to_wxyz(pose.quaternion_xyzw()), pose.quaternion)
+    assert same_rotation(qt.xyzw_to_wxyz(pose.quaternion_xyzw()), pose.quaternion)
 
 
 def test_pose_is_canonical_and_read_only() -> None:
@@ -214,7 +215,7 @@ def test_pose_compose() -> None:
 )
 def test_bad_quaternions_are_rejected_with_field(q: list[float], message: str) -> None:
     with pytest.raises(InvalidInput, match=message) as info:
-        tf.quat_normalize(q, field="grasp.orientation")
+        qt.quat_normalize(q, field="grasp.orientation")
     assert info.value.field == "grasp.orientation"
 
 
@@ -243,9 +244,9 @@ def test_bad_wire_poses_name_the_field() -> None:
 
 def test_bad_matrices_are_rejected() -> None:
     with pytest.raises(InvalidInput):
-        tf.matrix_to_quat(np.diag([1.0, 1.0, -1.0]))  # a reflection
+        qt.matrix_to_quat(np.diag([1.0, 1.0, -1.0]))  # a reflection
     with pytest.raises(InvalidInput):
-        tf.matrix_to_quat(2.0 * np.eye(3))
+        qt.matrix_to_quat(2.0 * np.eye(3))
     with pytest.raises(InvalidInput):
         tf.check_transform(np.ones((4, 4)))
     with pytest.raises(InvalidInput) as info:
@@ -259,4 +260,4 @@ def test_matrix_to_quat_near_pi(theta: float) -> None:
     """Shepperd's branches: rotations near pi about every axis come back exactly."""
     for axis in ([1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [1.0, 1.0, 0]):
         R = tf.axis_angle_to_matrix(axis, theta)
-        assert np.allclose(tf.quat_to_matrix(tf.matrix_to_quat(R)), R, atol=1e-12)
+        assert np.allclose(qt.quat_to_matrix(qt.matrix_to_quat(R)), R, atol=1e-12)

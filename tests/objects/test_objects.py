@@ -196,14 +196,18 @@ def test_json_builtin_with_overrides() -> None:
         ({"kind": "box", "size": [0.1, -0.1, 0.1], "mass": 1}, "object.size[1]"),
         ({"kind": "box", "size": [0.1, math.nan, 0.1], "mass": 1}, "object.size[1]"),
         ({"kind": "box", "size": [0.1, 0.1, math.inf], "mass": 1}, "object.size[2]"),
-        ({"kind": "box", "size": [0.1, 0.1], "mass": 1}, "object.size"),
+        ({"kind": "box", "size": [0.1, 0.1], "mass": 1}, "object.size[2]"),  # the missing third side
         ({"kind": "box", "size": "big", "mass": 1}, "object.size"),
         ({"kind": "box", "size": [0.1, 0.1, 0.1]}, "object.mass"),
         ({"kind": "box", "size": [0.1, 0.1, 0.1], "mass": True}, "object.mass"),
         ({"kind": "box", "size": [0.1, 0.1, 0.1], "mass": 1, "friction": 0}, "object.friction"),
-        ({"kind": "box", "size": [0.1, 0.1, 0.1], "mass": 1, "colour": "red"}, "object"),
+        ({"kind": "box", "size": [0.1, 0.1, 0.1], "mass": 1, "colour": "red"}, "object.colour"),
         ({"kind": "box", "size": [0.1, 0.1, 0.1], "mass": 1, "pose": {"x": math.nan}}, "object.pose.x"),
-        ({"kind": "box", "size": [0.1, 0.1, 0.1], "mass": 1, "pose": {"roll": 1}}, "object.pose"),
+        ({"kind": "box", "size": [0.1, 0.1, 0.1], "mass": 1, "pose": {"roll": 1}}, "object.pose.roll"),
+        ({"kind": "box", "size": [0.1, 0.1, 0.1], "mass": "0.5"}, "object.mass"),  # strings are not numbers
+        ({"kind": "box", "size": [0.1, 0.1, 0.1], "mass": 1, "friction": False}, "object.friction"),
+        ({"kind": "box", "size": [0.1, 0.1, 9.0], "mass": 1}, "object.size[2]"),  # the schema's range (<= 5 m)
+        ({"kind": "box", "size": [0.1, 0.1, 0.1], "mass": 5e3}, "object.mass"),
         ({"kind": "box", "size": [0.1, 0.1, 0.1], "mass": 1, "pose": {"z": 0.02}}, "object.pose.z"),
         ({"kind": "sphere", "mass": 1}, "object.radius"),
         ({"kind": "cylinder", "radius": 0.1, "length": 0.1, "mass": 1, "orientation": "up"},

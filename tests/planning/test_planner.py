@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from softsig_service.errors import InvalidInput
-from softsig_service.geometry.transforms import Pose, quat_to_matrix
+from softsig_service.geometry.quaternions import quat_to_matrix
+from softsig_service.geometry.transforms import Pose
 from softsig_service.objects import builtin_object
 from softsig_service.planning.planner import GraspPlan, Planner, PlanRequest, planning_model
 from softsig_service.planning.strategies import axis_angle_between_lines

@@ -1,4 +1,5 @@
-"""The registry on a real SQLite file: settings of the connection, versions under concurrency, ETags, cascades."""
+"""The registry on a real SQLite file and a real PostgreSQL server (``database_url``, tests/conftest.py): versions
+under concurrency, ETags, cascades, restarts; SQLite's connection settings."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from db_backends import Backend
 from sqlalchemy import text
 
 from softsig_service.errors import Conflict, HandNotFound, NotFound, PreconditionFailed, ServiceBusy
@@ -15,8 +17,8 @@ from softsig_service.registry.db import Registry
 
 
 @pytest.fixture()
-def reg(tmp_path: Path) -> Iterator[Registry]:
-    r = Registry(f"sqlite:///{tmp_path / 'sub' / 'registry.sqlite3'}", busy_timeout=30.0)
+def reg(database_url: str) -> Iterator[Registry]:
+    r = Registry(database_url, busy_timeout=30.0)
     yield r
     r.dispose()
 
@@ -25,25 +27,35 @@ def _hand(reg: Registry, name: str = "h1") -> repo.HandRecord:
     return repo.add_hand(reg, name=name, manifest_path=f"/x/{name}/hand.toml", info={"kind": "soft"}, folder="/x")
 
 
-def test_sqlite_connections_are_configured(reg: Registry) -> None:
+def test_sqlite_connections_are_configured(tmp_path: Path) -> None:
+    reg = Registry(f"sqlite:///{tmp_path / 'sub' / 'registry.sqlite3'}", busy_timeout=30.0)
     with reg.engine.connect() as conn:
         assert conn.execute(text("PRAGMA journal_mode")).scalar() == "wal"
         assert conn.execute(text("PRAGMA foreign_keys")).scalar() == 1
         assert conn.execute(text("PRAGMA busy_timeout")).scalar() == 30000
     assert reg.ping()
+    reg.dispose()
 
 
-def test_concurrent_versions_are_gapless(reg: Registry) -> None:
+def test_the_backend_is_the_one_asked_for(reg: Registry, db_backend: Backend) -> None:
+    assert reg.engine.dialect.name == db_backend.name
+    assert reg.is_sqlite == (db_backend.name == "sqlite")
+    assert reg.ping()
+
+
+def test_concurrent_versions_are_gapless(reg: Registry, database_url: str) -> None:
     _hand(reg, "h1")
     _hand(reg, "h2")
     n_threads, per_thread = 8, 25
     errors: list[BaseException] = []
+    # half the writers go through a second engine of their own, as a second service worker would
+    other = Registry(database_url, busy_timeout=30.0)
 
     def writer(k: int) -> None:
         try:
             for i in range(per_thread):
-                repo.add_signature(reg, "h1" if (k + i) % 2 else "h2", kind="closure", method="pca", source="simulation",
-                                   data={"k": k, "i": i})  # fmt: skip
+                repo.add_signature(other if k % 2 else reg, "h1" if (k + i) % 2 else "h2", kind="closure",
+                                   method="pca", source="simulation", data={"k": k, "i": i})  # fmt: skip
         except BaseException as exc:
             errors.append(exc)
 
@@ -51,7 +63,9 @@ def test_concurrent_versions_are_gapless(reg: Registry) -> None:
     for t in threads:
         t.start()
     for t in threads:
-        t.join()
+        t.join(timeout=60)
+    other.dispose()
+    assert not any(t.is_alive() for t in threads), "writers are stuck"
     assert errors == []
     total = 0
     for name in ("h1", "h2"):
@@ -130,6 +144,31 @@ def test_delete_cascades_and_builtins_are_read_only(reg: Registry) -> None:
         _hand(reg, "b")
 
 
+def test_workers_starting_together_register_each_builtin_hand_once(reg: Registry, database_url: str) -> None:
+    workers = [Registry(database_url, busy_timeout=30.0) for _ in range(4)]
+    barrier = threading.Barrier(len(workers))
+    outcomes: list[str] = []
+    errors: list[BaseException] = []
+
+    def start(worker: Registry) -> None:
+        barrier.wait()
+        try:
+            outcomes.append(repo.sync_builtin_hand(worker, name="b", manifest_path="/b/hand.toml", info={"v": 1}))
+        except BaseException as exc:
+            errors.append(exc)
+
+    threads = [threading.Thread(target=start, args=(w,)) for w in workers]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=60)
+    for w in workers:
+        w.dispose()
+    assert errors == []
+    assert sorted(outcomes) == ["added", "unchanged", "unchanged", "unchanged"]
+    assert [(h.name, h.revision) for h in repo.list_hands(reg)] == [("b", 1)]
+
+
 def test_jobs(reg: Registry) -> None:
     j = repo.add_job(reg, kind="validation", params={"trials": 3}, time_limit=10.0, max_unfinished=2)
     repo.add_job(reg, kind="validation", params={}, time_limit=10.0, max_unfinished=2)
@@ -146,8 +185,8 @@ def test_jobs(reg: Registry) -> None:
     assert total == 1 and items[0].error is not None and items[0].error["detail"] == "restart"
 
 
-def test_restart_keeps_the_registry(tmp_path: Path) -> None:
-    url = f"sqlite:///{tmp_path / 'r.sqlite3'}"
+def test_restart_keeps_the_registry(database_url: str) -> None:
+    url = database_url
     first = Registry(url)
     _hand(first)
     plan = repo.add_plan(first, hand="h1", strategy="C", success=True, request={"a": 1}, result={"b": 2})

@@ -16,20 +16,22 @@ from numpy.typing import ArrayLike, NDArray
 from softsig_service.errors import InvalidInput, InvalidTrajectory
 from softsig_service.experiments.closure_plot import magnitude_label, plot_closure_signature
 from softsig_service.geometry.pca import orient_axes, principal_components
-from softsig_service.geometry.transforms import quat_to_matrix
+from softsig_service.geometry.quaternions import quat_to_matrix
 from softsig_service.hands.trajectory import ClosureTrajectory
 from softsig_service.signatures.closure import (
-    CRITERIA,
-    DISTINCTNESS_CAP,
-    ELLIPSOID_RESOLUTION_FACTOR,
-    METHODS,
-    ClosureSignature,
     compute_closure_signature,
     distinctness_ratio,
     ellipsoid_axis_series,
     ellipsoid_closure_signature,
     mesh_closure_signature,
     pca_closure_signature,
+)
+from softsig_service.signatures.closure_types import (
+    CRITERIA,
+    DISTINCTNESS_CAP,
+    ELLIPSOID_RESOLUTION_FACTOR,
+    METHODS,
+    ClosureSignature,
 )
 
 FAST = settings(max_examples=30, deadline=None)

@@ -11,16 +11,8 @@ import pytest
 from softsig_service.arm.ur5 import HOME_Q, JOINT_NAMES, load_ur5
 from softsig_service.hands.model import SERVO_PREFIX, load_hand
 from softsig_service.objects import box, builtin_object, cylinder, mesh
-from softsig_service.simulation.scene import (
-    ARM_KP,
-    ARM_KV,
-    GEOM_ARM,
-    GEOM_HAND,
-    GEOM_OBJECT,
-    HAND_PREFIX,
-    Scene,
-    build_scene,
-)
+from softsig_service.simulation.scene import build_scene
+from softsig_service.simulation.scene_model import ARM_KP, ARM_KV, GEOM_ARM, GEOM_HAND, GEOM_OBJECT, HAND_PREFIX, Scene
 
 HANDS = ("pisa_iit_softhand", "parallel_gripper", "sdm_hand", "rbo_hand2")
 

@@ -6,8 +6,9 @@ from typing import Annotated, Any
 
 from fastapi import Query
 
+from softsig_service.api.deps import WriteAccess
 from softsig_service.api.problems import PROBLEM_MEDIA_TYPE
-from softsig_service.api.schemas import Problem
+from softsig_service.api.schemas import JobOut, Problem
 
 
 def problem(description: str) -> dict[str, Any]:
@@ -26,6 +27,18 @@ WRITE: dict[int | str, dict[str, Any]] = {
     422: problem("invalid request: the offending field is named"),
     **COMMON,
 }
+
+SUBMIT_JOB: dict[str, Any] = {
+    "status_code": 202,
+    "response_model": JobOut,
+    "dependencies": [WriteAccess],
+    "responses": {
+        501: problem("this job kind is not offered"),
+        503: problem("the job queue is full (Retry-After)"),
+        **WRITE,
+    },
+}
+"""What every route that submits a job declares: 202 with the job, write access, 501 and 503."""
 
 DEFAULT_LIMIT = 50
 """The page size of every list when ``limit`` is not given."""

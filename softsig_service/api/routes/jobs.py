@@ -22,17 +22,17 @@ from starlette.concurrency import run_in_threadpool
 from softsig_service.api.context import AppContext
 from softsig_service.api.deps import Ctx, ReadAccess, WriteAccess
 from softsig_service.api.job_responses import accepted, job_out
-from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, WRITE, Limit, Offset, page, problem
+from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, SUBMIT_JOB, WRITE, Limit, Offset, page, problem
 from softsig_service.api.schemas import (
     ExperimentIn,
     JobFiles,
     JobList,
     JobOut,
     ValidationIn,
-    object_json,
 )
 from softsig_service.errors import HandNotFound, InvalidInput, NotAvailable, NotFound
 from softsig_service.objects import object_from_json
+from softsig_service.objects.schema import object_json
 from softsig_service.registry import repository as repo
 from softsig_service.services.jobs import list_files, media_type, resolve_file
 
@@ -65,14 +65,7 @@ def _require_kind(ctx: AppContext, kind: str) -> None:
 
 @router.post(
     "/validations",
-    status_code=202,
-    response_model=JobOut,
-    dependencies=[WriteAccess],
-    responses={
-        501: problem("this job kind is not offered"),
-        503: problem("the job queue is full (Retry-After)"),
-        **WRITE,
-    },
+    **SUBMIT_JOB,
     summary="Validate a grasp in MuJoCo (a job)",
 )
 async def create_validation(ctx: Ctx, body: ValidationIn) -> JSONResponse:
@@ -95,14 +88,7 @@ async def create_validation(ctx: Ctx, body: ValidationIn) -> JSONResponse:
 
 @router.post(
     "/experiments",
-    status_code=202,
-    response_model=JobOut,
-    dependencies=[WriteAccess],
-    responses={
-        501: problem("this job kind is not offered"),
-        503: problem("the job queue is full (Retry-After)"),
-        **WRITE,
-    },
+    **SUBMIT_JOB,
     summary="Run the reference experiment, Table I (a job)",
 )
 async def create_experiment(ctx: Ctx, body: ExperimentIn) -> JSONResponse:

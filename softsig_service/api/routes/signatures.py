@@ -17,14 +17,13 @@ from starlette.concurrency import run_in_threadpool
 
 from softsig_service.api.deps import Ctx, IfMatchOptional, ReadAccess, WriteAccess
 from softsig_service.api.job_responses import accepted, stiffness_signature_version
-from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, WRITE, Limit, Offset, problem
+from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, SUBMIT_JOB, WRITE, Limit, Offset, problem
 from softsig_service.api.schemas import (
     CRITERION_DESCRIPTION,
     HAND_NAME_PATTERN,
     ClosureCriterion,
     ClosureSignatureIn,
     CsMethod,
-    JobOut,
     SignatureList,
     SignatureOut,
     StiffnessSignatureIn,
@@ -111,15 +110,7 @@ async def create_closure_signature(
 
 @router.post(
     "/hands/{hand}/signatures/stiffness",
-    status_code=202,
-    response_model=JobOut,
-    dependencies=[WriteAccess],
-    responses={
-        404: problem("unknown hand"),
-        501: problem("stiffness signatures are not offered by this service"),
-        503: problem("the job queue is full (Retry-After)"),
-        **WRITE,
-    },
+    **{**SUBMIT_JOB, "responses": {404: problem("unknown hand"), **SUBMIT_JOB["responses"]}},
     summary="Compute the stiffness signature (a job); stored as a new version when it succeeds",
 )
 async def create_stiffness_signature(

@@ -1,0 +1,109 @@
+"""The JSON schema of objects on the table (pydantic), shared by the REST API's request bodies and
+:func:`softsig_service.objects.object_from_json`: one definition of every key, type and range.
+
+Units and frames: lengths [m] in the object frame, ``pose`` in the world frame (``base_link``): centre (x, y)
+[m], ``yaw`` [rad] about world z, optional centre height ``z`` [m]; mass [kg]; friction dimensionless. Bodies are
+strict: unknown keys, NaN and infinities are errors, and numbers must be JSON numbers (``"0.5"`` and ``false``
+are not).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
+
+Length = Annotated[float, Field(gt=0.0, le=5.0, strict=True, description="[m]")]
+Coordinate = Annotated[float, Field(ge=-10.0, le=10.0, strict=True, description="[m]")]
+Index = Annotated[int, Field(ge=0, strict=True, description="0-based vertex index")]
+Angle = Annotated[float, Field(ge=-100.0, le=100.0, strict=True, description="[rad]")]
+
+
+class Strict(BaseModel):
+    """Base of request bodies: unknown fields, NaN and infinities are errors (numbers of the object schema are
+    strict too: no string or boolean is taken for one)."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+class ObjectPose(Strict):
+    """Placement of an object on the table: centre (x, y) [m] in ``base_link``, ``yaw`` [rad] about world z, and
+    optionally the centre height ``z`` [m] (default: resting on the table)."""
+
+    x: Coordinate = 0.5
+    y: Coordinate = 0.0
+    yaw: Angle = 0.0
+    z: Coordinate | None = None
+
+
+class _ObjectBase(Strict):
+    mass: float = Field(gt=0.0, le=1000.0, strict=True, description="[kg]")
+    friction: float = Field(1.0, gt=0.0, le=10.0, strict=True, description="sliding friction coefficient")
+    name: str = Field("", max_length=64)
+    pose: ObjectPose = Field(default_factory=ObjectPose)
+
+
+class BoxSpec(_ObjectBase):
+    """A box of full side lengths ``size`` (x, y, z) [m] in the object frame."""
+
+    kind: Literal["box"]
+    size: tuple[Length, Length, Length]
+
+
+class CylinderSpec(_ObjectBase):
+    """A cylinder; lying (axis = object x, default) or standing (axis = object z)."""
+
+    kind: Literal["cylinder"]
+    radius: Length
+    length: Length
+    orientation: Literal["lying", "standing"] = "lying"
+
+
+class SphereSpec(_ObjectBase):
+    """A sphere of ``radius`` [m]."""
+
+    kind: Literal["sphere"]
+    radius: Length
+
+
+class EllipsoidSpec(_ObjectBase):
+    """An ellipsoid of semi-axes ``radii`` (x, y, z) [m]."""
+
+    kind: Literal["ellipsoid"]
+    radii: tuple[Length, Length, Length]
+
+
+class MeshSpec(_ObjectBase):
+    """A triangle mesh: ``vertices`` [m] in the object frame and ``faces`` (0-based vertex indices)."""
+
+    kind: Literal["mesh"]
+    vertices: list[tuple[Coordinate, Coordinate, Coordinate]] = Field(min_length=4, max_length=100_000)
+    faces: list[tuple[Index, Index, Index]] = Field(min_length=1, max_length=200_000)
+
+
+class BuiltinObjectSpec(Strict):
+    """One of the objects of docs/design.md §7 (box, apple, cylinder), optionally with another mass, friction or
+    pose."""
+
+    kind: Literal["builtin"]
+    name: Literal["box", "apple", "cylinder"]
+    mass: float | None = Field(None, gt=0.0, le=1000.0, strict=True, description="[kg]")
+    friction: float | None = Field(None, gt=0.0, le=10.0, strict=True)
+    pose: ObjectPose | None = None
+
+
+ObjectSpec = Annotated[
+    BoxSpec | CylinderSpec | SphereSpec | EllipsoidSpec | MeshSpec | BuiltinObjectSpec,
+    Field(discriminator="kind"),
+]
+UNION_TAGS: frozenset[str] = frozenset({"box", "cylinder", "sphere", "ellipsoid", "mesh", "builtin"})
+"""Discriminator values: pydantic puts them in error locations; field paths leave them out."""
+
+
+OBJECT_SPEC: TypeAdapter[Any] = TypeAdapter(ObjectSpec)
+"""Validates an object JSON against :data:`ObjectSpec`."""
+
+
+def object_json(spec: BaseModel) -> dict[str, Any]:
+    """The object JSON of an :data:`ObjectSpec` (unset optional keys left out)."""
+    return spec.model_dump(exclude_none=True)

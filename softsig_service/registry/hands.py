@@ -1,0 +1,199 @@
+"""Hands in the registry: registration, built-in hands, replacement and deletion under ETags.
+
+A hand's ETag is ``"<name>.r<revision>"``; replacing a hand's files increments ``revision``. ``If-Match`` values
+are compared strongly; ``*`` matches any current representation. Built-in hands are read-only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from softsig_service.errors import Conflict, HandNotFound, PreconditionFailed
+from softsig_service.registry.db import Registry
+from softsig_service.registry.models import HandRow, utcnow
+
+
+def etag_matches(current: str | None, if_match: str) -> bool:
+    """Whether an ``If-Match`` header value matches ``current`` (strong comparison; ``*`` = any existing)."""
+    if current is None:
+        return False
+    tags = [t.strip() for t in if_match.split(",") if t.strip()]
+    return any(t == "*" or t == current for t in tags)
+
+
+@dataclass(frozen=True)
+class HandRecord:
+    """A registered hand: its manifest on disk, the summary of its model (``info``) and registry metadata."""
+
+    name: str
+    builtin: bool
+    revision: int
+    manifest_path: str
+    folder: str | None
+    files: list[dict[str, Any]]
+    info: dict[str, Any]
+    signature_count: int
+    created_at: datetime
+    updated_at: datetime
+
+    @property
+    def etag(self) -> str:
+        """Strong ETag of this revision of the hand."""
+        return f'"{self.name}.r{self.revision}"'
+
+
+def _hand(row: HandRow) -> HandRecord:
+    return HandRecord(
+        name=row.name,
+        builtin=row.builtin,
+        revision=row.revision,
+        manifest_path=row.manifest_path,
+        folder=row.folder,
+        files=list(row.files or []),
+        info=dict(row.info or {}),
+        signature_count=row.signature_count,
+        created_at=row.created_at,
+        updated_at=row.updated_at,
+    )
+
+
+def hand_row(session: Session, name: str, field: str = "hand") -> HandRow:
+    """The row of hand ``name`` in ``session``; :class:`HandNotFound` naming ``field`` if there is none."""
+    row = session.scalars(select(HandRow).where(HandRow.name == name)).one_or_none()
+    if row is None:
+        names = session.scalars(select(HandRow.name).order_by(HandRow.name)).all()
+        raise HandNotFound("unknown hand", field=field, value=name, choices=names)
+    return row
+
+
+def list_hands(reg: Registry) -> list[HandRecord]:
+    """Every registered hand, by name."""
+    with reg.read() as s:
+        return [_hand(r) for r in s.scalars(select(HandRow).order_by(HandRow.name))]
+
+
+def get_hand(reg: Registry, name: str, *, field: str = "hand") -> HandRecord:
+    """The hand ``name``; :class:`HandNotFound` (with the registered names as choices) if there is none."""
+    with reg.read() as s:
+        return _hand(hand_row(s, name, field))
+
+
+def hand_names(reg: Registry) -> list[str]:
+    """Names of the registered hands."""
+    with reg.read() as s:
+        return list(s.scalars(select(HandRow.name).order_by(HandRow.name)))
+
+
+def add_hand(
+    reg: Registry,
+    *,
+    name: str,
+    manifest_path: str,
+    info: dict[str, Any],
+    files: Sequence[dict[str, Any]] = (),
+    folder: str | None = None,
+    builtin: bool = False,
+) -> HandRecord:
+    """Register a new hand; :class:`Conflict` if the name is taken."""
+    try:
+        with reg.write() as s:
+            if s.scalars(select(HandRow.id).where(HandRow.name == name)).first() is not None:
+                raise Conflict("a hand of this name is registered already", field="manifest.name", value=name)
+            row = HandRow(
+                name=name,
+                builtin=builtin,
+                revision=1,
+                manifest_path=manifest_path,
+                folder=folder,
+                files=list(files),
+                info=info,
+                signature_count=0,
+            )
+            s.add(row)
+            s.flush()
+            return _hand(row)
+    except IntegrityError:
+        raise Conflict("a hand of this name is registered already", field="manifest.name", value=name) from None
+
+
+def sync_builtin_hand(reg: Registry, *, name: str, manifest_path: str, info: dict[str, Any]) -> str:
+    """Register a built-in hand if missing, refresh its path and summary if they changed.
+
+    Returns ``"added"``, ``"updated"`` (revision incremented) or ``"unchanged"``. A user's hand of the same name
+    is left alone (``"shadowed"``). Safe when several service workers start at once: the one whose insert loses
+    the race on the hand's unique name (PostgreSQL) looks again and finds the row the winner added.
+    """
+    try:
+        return _sync_builtin_hand(reg, name=name, manifest_path=manifest_path, info=info)
+    except IntegrityError:
+        return _sync_builtin_hand(reg, name=name, manifest_path=manifest_path, info=info)
+
+
+def _sync_builtin_hand(reg: Registry, *, name: str, manifest_path: str, info: dict[str, Any]) -> str:
+    with reg.write() as s:
+        row = s.scalars(select(HandRow).where(HandRow.name == name)).one_or_none()
+        if row is None:
+            s.add(HandRow(name=name, builtin=True, revision=1, manifest_path=manifest_path, info=info, files=[]))
+            s.flush()
+            return "added"
+        if not row.builtin:
+            return "shadowed"
+        if row.manifest_path == manifest_path and row.info == info:
+            return "unchanged"
+        row.manifest_path = manifest_path
+        row.info = info
+        row.revision += 1
+        row.updated_at = utcnow()
+        return "updated"
+
+
+def _check_mutable(row: HandRow, if_match: str | None) -> None:
+    if row.builtin:
+        raise Conflict("built-in hands cannot be replaced or deleted", field="hand", value=row.name)
+    if if_match is not None and not etag_matches(_hand(row).etag, if_match):
+        raise PreconditionFailed(
+            "If-Match does not match the hand's current ETag", field="If-Match", value=if_match,
+            choices=[_hand(row).etag],
+        )  # fmt: skip
+
+
+def replace_hand(
+    reg: Registry,
+    name: str,
+    *,
+    if_match: str | None,
+    manifest_path: str,
+    folder: str,
+    files: Sequence[dict[str, Any]],
+    info: dict[str, Any],
+) -> tuple[HandRecord, str | None]:
+    """Replace an uploaded hand's files (revision + 1); returns the new record and the old folder to remove."""
+    with reg.write() as s:
+        row = hand_row(s, name)
+        _check_mutable(row, if_match)
+        old = row.folder
+        row.manifest_path = manifest_path
+        row.folder = folder
+        row.files = list(files)
+        row.info = info
+        row.revision += 1
+        row.updated_at = utcnow()
+        s.flush()
+        return _hand(row), old
+
+
+def delete_hand(reg: Registry, name: str, *, if_match: str | None) -> HandRecord:
+    """Delete an uploaded hand and its signatures; returns the deleted record (its folder is the caller's)."""
+    with reg.write() as s:
+        row = hand_row(s, name)
+        _check_mutable(row, if_match)
+        record = _hand(row)
+        s.delete(row)
+        return record

@@ -1,0 +1,73 @@
+"""Stored grasp plans: the request as received and the planner's result, under a random id."""
+
+from __future__ import annotations
+
+import uuid
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import func, select
+
+from softsig_service.errors import NotFound
+from softsig_service.registry.db import Registry
+from softsig_service.registry.models import PlanRow
+
+
+@dataclass(frozen=True)
+class PlanRecord:
+    """A stored plan: the request as received and the planner's result JSON."""
+
+    id: str
+    hand: str
+    strategy: str
+    success: bool
+    request: dict[str, Any]
+    result: dict[str, Any]
+    created_at: datetime
+
+
+def _plan(row: PlanRow) -> PlanRecord:
+    return PlanRecord(
+        id=row.id,
+        hand=row.hand,
+        strategy=row.strategy,
+        success=row.success,
+        request=dict(row.request),
+        result=dict(row.result),
+        created_at=row.created_at,
+    )
+
+
+def add_plan(reg: Registry, *, hand: str, strategy: str, success: bool, request: dict[str, Any],
+             result: dict[str, Any]) -> PlanRecord:  # fmt: skip
+    """Store a plan under a new random id."""
+    with reg.write() as s:
+        row = PlanRow(
+            id=uuid.uuid4().hex, hand=hand, strategy=strategy, success=success, request=request, result=result
+        )
+        s.add(row)
+        s.flush()
+        return _plan(row)
+
+
+def get_plan(reg: Registry, plan_id: str) -> PlanRecord:
+    """The plan ``plan_id``; :class:`NotFound` if there is none."""
+    with reg.read() as s:
+        row = s.get(PlanRow, plan_id)
+        if row is None:
+            raise NotFound("no such plan", field="plan_id", value=plan_id)
+        return _plan(row)
+
+
+def list_plans(
+    reg: Registry, *, hand: str | None = None, limit: int = 50, offset: int = 0
+) -> tuple[list[PlanRecord], int]:
+    """Stored plans, newest first, optionally of one hand, and the total count."""
+    with reg.read() as s:
+        q = select(PlanRow)
+        n = select(func.count()).select_from(PlanRow)
+        if hand is not None:
+            q, n = q.where(PlanRow.hand == hand), n.where(PlanRow.hand == hand)
+        rows = s.scalars(q.order_by(PlanRow.created_at.desc(), PlanRow.id).limit(limit).offset(offset)).all()
+        return [_plan(r) for r in rows], int(s.execute(n).scalar_one())

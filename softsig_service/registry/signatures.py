@@ -1,0 +1,178 @@
+"""Versioned signatures of a hand: append-only rows numbered 1..N per hand without gaps.
+
+A signature's ETag is ``"<hand>.v<version>"``. Versions are allocated per hand (closure and stiffness share one
+sequence) by ``UPDATE hands SET signature_count = signature_count + 1 ... RETURNING`` in the transaction that
+inserts the row: concurrent writers queue on the hand's row (PostgreSQL) or on SQLite's write lock, and a
+rolled-back insert rolls the counter back too, so versions are 1..N without gaps. Rows are never updated.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import func, select, update
+
+from softsig_service.errors import Conflict, NotFound, PreconditionFailed
+from softsig_service.registry.db import Registry
+from softsig_service.registry.hands import etag_matches, hand_row
+from softsig_service.registry.models import HandRow, SignatureRow
+
+
+@dataclass(frozen=True)
+class SignatureRecord:
+    """One stored signature version."""
+
+    hand: str
+    version: int
+    kind: str
+    method: str
+    source: str
+    hand_revision: int
+    params: dict[str, Any]
+    data: dict[str, Any]
+    created_at: datetime
+
+    @property
+    def etag(self) -> str:
+        """Strong ETag of this version."""
+        return f'"{self.hand}.v{self.version}"'
+
+    @property
+    def criterion(self) -> str | None:
+        """The criterion of an ellipsoid closure signature: "absolute" (deltas [m]) or "relative" (dimensionless);
+        None for other methods and kinds, and when nothing in the row tells.
+
+        Read from the stored ``params["criterion"]``, else from the signature's own ``params``, else from its
+        ``extras["magnitude_unit"]`` ("m": absolute, "1": relative), so ellipsoid versions stored without the
+        field (computed when the relative change was the only criterion) read back as "relative".
+        """
+        if self.kind != "closure" or self.method != "ellipsoid":
+            return None
+        sig_params = self.data.get("params")
+        extras = self.data.get("extras")
+        candidates = [self.params.get("criterion")]
+        if isinstance(sig_params, dict):
+            candidates.append(sig_params.get("criterion"))
+        if isinstance(extras, dict):
+            candidates.append(_CRITERION_OF_UNIT.get(str(extras.get("magnitude_unit"))))
+        return next((c for c in candidates if c in ("absolute", "relative")), None)
+
+
+_CRITERION_OF_UNIT = {"m": "absolute", "1": "relative"}
+"""The ellipsoid criterion of a stored closure signature by the unit of its magnitude."""
+
+
+def _signature(row: SignatureRow, hand: str) -> SignatureRecord:
+    return SignatureRecord(
+        hand=hand,
+        version=row.version,
+        kind=row.kind,
+        method=row.method,
+        source=row.source,
+        hand_revision=row.hand_revision,
+        params=dict(row.params or {}),
+        data=dict(row.data),
+        created_at=row.created_at,
+    )
+
+
+def add_signature(
+    reg: Registry,
+    hand: str,
+    *,
+    kind: str,
+    method: str,
+    source: str,
+    data: dict[str, Any],
+    params: dict[str, Any] | None = None,
+    hand_revision: int | None = None,
+    if_match: str | None = None,
+) -> SignatureRecord:
+    """Store a new signature version of ``hand`` (the next number; never overwrites).
+
+    ``hand_revision`` is the revision the signature was computed from: if the hand was replaced meanwhile,
+    :class:`Conflict`. ``if_match`` (optional) must match the ETag of the hand's latest version, else
+    :class:`PreconditionFailed` (a client that read version N and computed N+1 from it learns that another
+    version came first).
+    """
+    with reg.write() as s:
+        row = hand_row(s, hand)
+        if hand_revision is not None and row.revision != hand_revision:
+            raise Conflict(
+                "the hand was replaced while its signature was computed; compute it again",
+                field="hand",
+                value={"computed_from_revision": hand_revision, "current_revision": row.revision},
+            )
+        if if_match is not None:
+            latest = s.scalars(
+                select(SignatureRow).where(SignatureRow.hand_id == row.id).order_by(SignatureRow.version.desc())
+            ).first()
+            current = _signature(latest, hand).etag if latest is not None else None
+            if not etag_matches(current, if_match):
+                raise PreconditionFailed(
+                    "If-Match does not match the ETag of the hand's latest signature",
+                    field="If-Match",
+                    value=if_match,
+                    choices=[current] if current else None,
+                )
+        version = s.execute(
+            update(HandRow)
+            .where(HandRow.id == row.id)
+            .values(signature_count=HandRow.signature_count + 1)
+            .returning(HandRow.signature_count)
+        ).scalar_one()
+        sig = SignatureRow(
+            hand_id=row.id,
+            version=version,
+            kind=kind,
+            method=method,
+            source=source,
+            hand_revision=row.revision,
+            params=params or {},
+            data=data,
+        )
+        s.add(sig)
+        s.flush()
+        return _signature(sig, hand)
+
+
+def list_signatures(
+    reg: Registry, hand: str, *, kind: str | None = None, limit: int = 100, offset: int = 0
+) -> tuple[list[SignatureRecord], int]:
+    """Versions of ``hand`` (newest first), optionally of one kind, and the total count."""
+    with reg.read() as s:
+        row = hand_row(s, hand)
+        q = select(SignatureRow).where(SignatureRow.hand_id == row.id)
+        n = select(func.count()).select_from(SignatureRow).where(SignatureRow.hand_id == row.id)
+        if kind is not None:
+            q = q.where(SignatureRow.kind == kind)
+            n = n.where(SignatureRow.kind == kind)
+        rows = s.scalars(q.order_by(SignatureRow.version.desc()).limit(limit).offset(offset)).all()
+        return [_signature(r, hand) for r in rows], int(s.execute(n).scalar_one())
+
+
+def get_signature(reg: Registry, hand: str, version: int) -> SignatureRecord:
+    """Version ``version`` of ``hand``'s signatures; :class:`NotFound` if there is none."""
+    with reg.read() as s:
+        row = hand_row(s, hand)
+        sig = s.scalars(
+            select(SignatureRow).where(SignatureRow.hand_id == row.id, SignatureRow.version == version)
+        ).one_or_none()
+        if sig is None:
+            raise NotFound("no such signature version", field="version", value=version)
+        return _signature(sig, hand)
+
+
+def latest_signature(reg: Registry, hand: str, *, kind: str | None = None) -> SignatureRecord:
+    """The newest signature of ``hand`` (of ``kind`` if given); :class:`NotFound` if there is none."""
+    with reg.read() as s:
+        row = hand_row(s, hand)
+        q = select(SignatureRow).where(SignatureRow.hand_id == row.id)
+        if kind is not None:
+            q = q.where(SignatureRow.kind == kind)
+        sig = s.scalars(q.order_by(SignatureRow.version.desc())).first()
+        if sig is None:
+            raise NotFound("the hand has no signature of this kind yet", field="kind", value=kind)
+        return _signature(sig, hand)
