@@ -28,10 +28,6 @@ class AppContext:
     api_keys: list[str]
     hands_dir: Path
     plans_dir: Path
-    plan_lock: threading.Lock = field(default_factory=threading.Lock)
-    """Serialises ``planner.plan``: the planner solves its CasADi NLP outside its own lock, and concurrent calls
-    corrupt memory (seen as heap corruption with 2-4 threads); one plan at a time costs little since most of a
-    plan runs under the planner's lock anyway."""
     _hand_cache: dict[str, repo.HandRecord] = field(default_factory=dict)
     _lock: threading.Lock = field(default_factory=threading.Lock)
 

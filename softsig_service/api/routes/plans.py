@@ -55,8 +55,7 @@ def make_plan(ctx: AppContext, body: PlanIn) -> dict[str, Any]:
         cs_criterion=body.cs_criterion,
         placement=body.placement,
     )
-    with ctx.plan_lock:
-        plan = ctx.planner.plan(request)
+    plan = ctx.planner.plan(request)  # thread-safe: per-thread solvers and collision worlds, no lock
     ctx.metrics.plan_seconds.labels(body.strategy).observe(plan.timing.get("total", 0.0))
     data: dict[str, Any] = vectors_as_objects(to_jsonable(plan.to_json_dict()))
     data["hand_revision"] = hand.revision
