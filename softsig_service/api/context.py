@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from softsig_service import registry as repo
 from softsig_service.config import Settings
-from softsig_service.registry import repository as repo
 from softsig_service.registry.db import Registry
 from softsig_service.services.compute import ComputePool
 from softsig_service.services.jobs import JobManager
