@@ -7,8 +7,9 @@ keeps one HTTP/1.1 connection (httpx) and posts ``POST /v1/plans`` for the built
 (x in [0.4, 0.6] m, y in [-0.15, 0.15] m, yaw in [-pi, pi]; fixed seed) until ``--requests`` are done or
 ``--seconds`` have passed. Printed per run: requests per second, p50/p90/p99 latency [ms] measured by the client,
 and the server's own split from its Prometheus metrics: mean planner time per plan and mean time in the HTTP
-stack per request (so the rest is queueing and the client). Runs: concurrency 1 (the latency of one request
-alone), then ``--concurrency`` with plans stored and with ``store: false``.
+stack per request (so the rest is queueing and the client), and the CPU used by the client process and by the
+server process over the run, in cores. Runs: concurrency 1 (the latency of one request alone), then
+``--concurrency`` with plans stored and with ``store: false``.
 """
 
 from __future__ import annotations
@@ -72,7 +73,15 @@ def metric_sum_count(text: str, name: str, label: str = "") -> tuple[float, floa
     return total, count
 
 
-def run(url: str, *, n: int, concurrency: int, seconds: float, strategy: str, store: bool) -> dict[str, Any]:
+def process_cpu_seconds(pid: int) -> float:
+    """User + system CPU time [s] of process ``pid`` and its waited-for children (Linux ``/proc/<pid>/stat``)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return sum(int(v) for v in fields[11:15]) / os.sysconf("SC_CLK_TCK")
+
+
+def run(
+    url: str, *, n: int, concurrency: int, seconds: float, strategy: str, store: bool, server_pid: int
+) -> dict[str, Any]:
     rng = random.Random(7)
     bodies = [
         {
@@ -104,12 +113,13 @@ def run(url: str, *, n: int, concurrency: int, seconds: float, strategy: str, st
                 r = client.post("/v1/plans", json=body)
                 dt = time.perf_counter() - t0
                 with lock:
-                    if r.status_code == 201:
+                    if r.status_code == (201 if store else 200):  # a plan not stored is 200 OK
                         latencies.append(dt)
                     else:
                         failures.append(f"{r.status_code} {r.text[:200]}")
 
     before = httpx.get(f"{url}/metrics").text
+    cpu_client, cpu_server = time.process_time(), process_cpu_seconds(server_pid)
     t0 = time.perf_counter()
     threads = [threading.Thread(target=worker) for _ in range(concurrency)]
     for t in threads:
@@ -117,6 +127,7 @@ def run(url: str, *, n: int, concurrency: int, seconds: float, strategy: str, st
     for t in threads:
         t.join()
     wall = time.perf_counter() - t0
+    cpu_client, cpu_server = time.process_time() - cpu_client, process_cpu_seconds(server_pid) - cpu_server
     after = httpx.get(f"{url}/metrics").text
     plan_s = [a - b for a, b in zip(metric_sum_count(after, "softsig_plan_seconds"),
                                     metric_sum_count(before, "softsig_plan_seconds"), strict=True)]  # fmt: skip
@@ -146,6 +157,8 @@ def run(url: str, *, n: int, concurrency: int, seconds: float, strategy: str, st
         "mean": statistics.fmean(lat) * 1e3 if lat else float("nan"),
         "planner_mean": plan_s[0] / plan_s[1] * 1e3 if plan_s[1] else float("nan"),
         "server_mean": http_s[0] / http_s[1] * 1e3 if http_s[1] else float("nan"),
+        "client_cpu": cpu_client / wall if wall > 0 else float("nan"),
+        "server_cpu": cpu_server / wall if wall > 0 else float("nan"),
     }
 
 
@@ -159,14 +172,15 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp:
         proc, url = start_server(Path(tmp))
         try:
-            run(url, n=30, concurrency=2, seconds=30, strategy=args.strategy, store=True)  # warm-up
+            pid = proc.pid
+            run(url, n=30, concurrency=2, seconds=30, strategy=args.strategy, store=True, server_pid=pid)  # warm-up
             rows = [
                 run(url, n=max(50, args.requests // 4), concurrency=1, seconds=args.seconds, strategy=args.strategy,
-                    store=True),
+                    store=True, server_pid=pid),
                 run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
-                    strategy=args.strategy, store=True),
+                    strategy=args.strategy, store=True, server_pid=pid),
                 run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
-                    strategy=args.strategy, store=False),
+                    strategy=args.strategy, store=False, server_pid=pid),
             ]  # fmt: skip
         finally:
             proc.send_signal(signal.SIGINT)
@@ -176,15 +190,17 @@ def main() -> None:
                 proc.kill()
     print(f"POST /v1/plans, strategy {args.strategy}, pisa_iit_softhand, box at random poses; {os.cpu_count()} CPUs")
     print(f"{'conc':>4} {'store':>5} {'n':>5} {'fail':>4} {'req/s':>7} {'p50 ms':>7} {'p90 ms':>7} {'p99 ms':>7} "
-          f"{'planner ms':>10} {'server ms':>9}")  # fmt: skip
+          f"{'planner ms':>10} {'server ms':>9} {'client CPU':>10} {'server CPU':>10}")  # fmt: skip
     for r in rows:
         print(f"{r['concurrency']:4d} {('yes' if r['store'] else 'no'):>5} {r['requests']:5d} {r['failures']:4d} "
               f"{r['rps']:7.1f} {r['p50']:7.2f} {r['p90']:7.2f} {r['p99']:7.2f} {r['planner_mean']:10.2f} "
-              f"{r['server_mean']:9.2f}")  # fmt: skip
+              f"{r['server_mean']:9.2f} {r['client_cpu']:10.2f} {r['server_cpu']:10.2f}")  # fmt: skip
         if r["first_failure"]:
             print(f"     first failure: {r['first_failure']}")
     print("planner ms: mean planner time per plan (server metric softsig_plan_seconds); server ms: mean time the")
     print("request spent in the server's HTTP stack (softsig_http_request_duration_seconds, route /v1/plans).")
+    print("client CPU / server CPU: CPU time of the client process / of the server process over the run's wall")
+    print("time, in cores (on a 2-core machine the client's share is taken from the server).")
 
 
 if __name__ == "__main__":

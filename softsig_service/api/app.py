@@ -26,13 +26,13 @@ from fastapi import FastAPI
 from starlette.concurrency import run_in_threadpool
 
 from softsig_service import __version__
+from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
 from softsig_service.api.guard import AuthGateMiddleware
 from softsig_service.api.idempotency import IdempotencyMiddleware
 from softsig_service.api.logging import RequestContextMiddleware
 from softsig_service.api.problems import BodyLimitMiddleware, install_problem_handlers
 from softsig_service.config import Settings
-from softsig_service.registry import repository as repo
 from softsig_service.registry.db import Registry
 from softsig_service.registry.idempotency import purge_expired_keys
 from softsig_service.services.compute import ComputePool

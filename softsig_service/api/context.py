@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from softsig_service import registry as repo
 from softsig_service.config import Settings
-from softsig_service.registry import repository as repo
 from softsig_service.registry.db import Registry
 from softsig_service.services.compute import ComputePool
 from softsig_service.services.jobs import JobManager
@@ -28,10 +27,6 @@ class AppContext:
     api_keys: list[str]
     hands_dir: Path
     plans_dir: Path
-    plan_lock: threading.Lock = field(default_factory=threading.Lock)
-    """Serialises ``planner.plan``: the planner solves its CasADi NLP outside its own lock, and concurrent calls
-    corrupt memory (seen as heap corruption with 2-4 threads); one plan at a time costs little since most of a
-    plan runs under the planner's lock anyway."""
 
     def hand(self, name: str, *, field: str = "hand") -> repo.HandRecord:
         """The registered hand ``name`` as the registry holds it now: another process of the service may have

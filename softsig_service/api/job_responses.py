@@ -8,10 +8,10 @@ from typing import Any
 
 from fastapi.responses import JSONResponse
 
+from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
 from softsig_service.api.schemas import JobOut, StiffnessSignatureIn
 from softsig_service.objects.schema import object_json
-from softsig_service.registry import repository as repo
 
 
 def job_out(rec: repo.JobRecord) -> dict[str, Any]:

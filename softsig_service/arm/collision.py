@@ -38,8 +38,8 @@ A :class:`CollisionWorld` holds mutable Pinocchio/coal data: use one per thread.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import coal
 import numpy as np
@@ -47,15 +47,11 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from softsig_service.arm.arm_geometry import arm_geometry
+from softsig_service.arm.collision_model import PairInfo, WorldModel, build_world_model
 from softsig_service.arm.collision_report import (
     CATEGORY_ORDER,
-    HAND_ATTACHED_LINKS,
-    HAND_PREFIX,
     OBJECT_NAME,
     REASON_OF,
-    TABLE_EXCLUDED_LINKS,
-    TABLE_NAME,
-    Category,
     CollisionReport,
     check_finite,
     check_margin,
@@ -74,13 +70,8 @@ from softsig_service.geometry.transforms import check_transform
 FloatArray = NDArray[np.float64]
 
 
-@dataclass(frozen=True)
-class _Pair:
-    index: int
-    category: Category
-    hand_object: bool
-    names: tuple[str, str]
-    hand: bool  # the first geometry is a hand shape
+_BUILT_WORLDS = 8
+"""How many object shapes a world keeps built (least recently used dropped), so that objects can alternate."""
 
 
 class CollisionWorld:
@@ -117,76 +108,16 @@ class CollisionWorld:
         self._arm = arm_geometry(ur5.urdf_path, ur5.srdf_path, ur5.package_dir)
         self._model = ur5.model
         self._data = ur5.model.createData()
-        self._object: tuple[coal.CollisionGeometry, FloatArray] | None = None
-        self._object_key: tuple[object, ...] | None = None
-        self._build()
+        self._w = self._build(None, None)
+        self._built: OrderedDict[tuple[object, ...], WorldModel] = OrderedDict()
+
+    def _build(
+        self, obj: tuple[coal.CollisionGeometry, FloatArray] | None, key: tuple[object, ...] | None
+    ) -> WorldModel:
+        """The geometry model of this world with the object ``obj`` (None: no object)."""
+        return build_world_model(self.ur5, self._arm, self.hand_shapes, self.table_height, obj, key)
 
     # -- construction ------------------------------------------------------------------------------------
-
-    def _build(self) -> None:
-        """(Re)build the geometry model with the arm, the table, the hand shapes, the object and all pairs."""
-        arm = self._arm
-        gm = pin.GeometryModel()
-        names: list[str] = []
-        for go, name in zip(arm.model.geometryObjects, arm.names, strict=True):
-            gm.addGeometryObject(pin.GeometryObject(go))
-            names.append(name)
-        n_arm = len(names)
-        table = coal.Halfspace(np.array([0.0, 0.0, 1.0]), self.table_height)
-        table_id = gm.addGeometryObject(pin.GeometryObject(TABLE_NAME, 0, 0, pin.SE3.Identity(), table))
-        names.append(TABLE_NAME)
-
-        fid = self.ur5.flange_frame_id
-        frame = self._model.frames[fid]
-        joint_T_tool0 = np.array(frame.placement.homogeneous)
-        hand_ids: list[int] = []
-        for i, hs in enumerate(self.hand_shapes):
-            T = joint_T_tool0 @ hs.pose_in_hand
-            placement = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
-            label = HAND_PREFIX + (hs.name or f"{hs.kind}{i}")
-            go = pin.GeometryObject(label, int(frame.parentJoint), fid, placement, hs.geometry())
-            hand_ids.append(gm.addGeometryObject(go))
-            names.append(label)
-
-        object_id: int | None = None
-        if self._object is not None:
-            geo, pose = self._object
-            placement = pin.SE3(pose[:3, :3].copy(), pose[:3, 3].copy())
-            object_id = gm.addGeometryObject(pin.GeometryObject(OBJECT_NAME, 0, 0, placement, geo))
-            names.append(OBJECT_NAME)
-
-        specs: list[tuple[int, int, Category, bool]] = [(a, b, "self", False) for a, b in arm.self_pairs]
-        hand_set = set(hand_ids)
-        for a in range(n_arm):
-            if names[a] not in TABLE_EXCLUDED_LINKS:
-                specs.append((a, table_id, "table", False))
-            if object_id is not None:
-                specs.append((a, object_id, "object", False))
-        for h in hand_ids:
-            specs.append((h, table_id, "table", False))
-            if object_id is not None:
-                specs.append((h, object_id, "object", True))
-            for a in range(n_arm):
-                if names[a] not in HAND_ATTACHED_LINKS:
-                    specs.append((a, h, "self", False))
-
-        pairs: list[_Pair] = []
-        for a, b, cat, ho in specs:
-            gm.addCollisionPair(pin.CollisionPair(a, b))
-            k = len(pairs)
-            pairs.append(_Pair(k, cat, ho, (names[a], names[b]), a in hand_set))
-        self._gm = gm
-        gd = pin.GeometryData(gm)
-        for req in gd.collisionRequests:
-            # coal 3.0.3 without contact computation can report "free" when a capsule's core segment just
-            # touches a box face (seen: a capsule 1 cm deep in a box, ~1 in 4000 random capsule/box poses).
-            # Asking for one contact runs EPA on overlap and gets these right.
-            req.enable_contact = True
-            req.num_max_contacts = 1
-        self._gd = gd
-        self._pairs = pairs
-        self._names = names
-        self._applied_margins: dict[str, float] = {}
 
     def set_object(self, shape: ShapeSpec, pose: ArrayLike) -> None:
         """Put one object in the world (replacing any previous one).
@@ -196,34 +127,45 @@ class CollisionWorld:
                 ``softsig_service.objects`` primitives), MuJoCo size conventions.
             pose: 4x4 pose ``T_world_shape`` of the shape frame [m].
         """
-        T = check_transform(pose, field="object.pose").copy()
-        key = (shape.kind, tuple(shape.size), None if shape.vertices is None else np.asarray(shape.vertices).tobytes())
-        if self._object is not None and key == self._object_key:
-            # same shape, new pose: move the existing geometry instead of rebuilding the world
-            geo = self._object[0]
-            self._object = (geo, T)
-            oid = self._gm.getGeometryId(OBJECT_NAME)
-            self._gm.geometryObjects[oid].placement = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
-            return
-        self._object = (object_geometry(shape), T)
-        self._object_key = key
-        self._build()
+        self.set_object_unchecked(shape, check_transform(pose, field="object.pose").copy())
+
+    def set_object_unchecked(self, shape: ShapeSpec, T: FloatArray) -> None:
+        """:meth:`set_object` for callers that pass a checked rigid 4x4 float transform ``T`` [m] (not copied)."""
+        content = getattr(shape, "content_key", None)
+        if content is None and shape.vertices is not None:
+            content = np.asarray(shape.vertices).tobytes()
+        key = (shape.kind, tuple(shape.size), content)
+        w = self._w
+        if w.obj is None or key != w.key:
+            if w.key is not None:  # keep the current world for when its object comes back
+                self._built[w.key] = w
+            cached = self._built.pop(key, None)
+            w = self._w = cached if cached is not None else self._build((object_geometry(shape), T), key)
+            self._built[key] = w
+            while len(self._built) > _BUILT_WORLDS:
+                self._built.popitem(last=False)
+        assert w.obj is not None
+        # same shape, new pose: move the existing geometry instead of rebuilding the world
+        geo = w.obj[0]
+        w.obj = (geo, T)
+        oid = w.gm.getGeometryId(OBJECT_NAME)
+        placement = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
+        w.gm.geometryObjects[oid].placement = placement
+        w.broad.move(oid, placement, geo)
 
     def clear_object(self) -> None:
         """Remove the object from the world."""
-        self._object = None
-        self._object_key = None
-        self._build()
+        self._w = self._build(None, None)
 
     @property
     def has_object(self) -> bool:
         """Whether an object is in the world."""
-        return self._object is not None
+        return self._w.obj is not None
 
     @property
     def pair_names(self) -> list[tuple[str, str, str]]:
         """Every pair the world can check, as (name, name, category)."""
-        return [(p.names[0], p.names[1], p.category) for p in self._pairs]
+        return [(p.names[0], p.names[1], p.category) for p in self._w.pairs]
 
     # -- checks ----------------------------------------------------------------------------------------------
 
@@ -235,18 +177,24 @@ class CollisionWorld:
         }
 
     def _apply_margins(self, margins: dict[str, float]) -> None:
-        if margins == self._applied_margins:
+        if margins == self._w.applied_margins:
             return
-        reqs = self._gd.collisionRequests
-        for p in self._pairs:
+        reqs = self._w.gd.collisionRequests
+        for p in self._w.pairs:
             reqs[p.index].security_margin = margins[p.category]
-        self._applied_margins = margins
+        self._w.applied_margins = margins
 
     def _selected(
         self, check_table: bool, check_object: bool, check_self: bool, ignore_hand_object: bool
-    ) -> list[_Pair]:
-        wanted = {"table": check_table, "object": check_object, "self": check_self}
-        return [p for p in self._pairs if wanted[p.category] and not (ignore_hand_object and p.hand_object)]
+    ) -> tuple[list[PairInfo], NDArray[np.intp]]:
+        """The pairs the flags select, and their indices (built once per combination of flags)."""
+        key = (check_table, check_object, check_self, ignore_hand_object)
+        hit = self._w.selections.get(key)
+        if hit is None:
+            wanted = {"table": check_table, "object": check_object, "self": check_self}
+            sel = [p for p in self._w.pairs if wanted[p.category] and not (ignore_hand_object and p.hand_object)]
+            hit = self._w.selections[key] = (sel, np.array([p.index for p in sel], dtype=np.intp))
+        return hit
 
     def check(
         self,
@@ -274,19 +222,35 @@ class CollisionWorld:
                 GJK calls on convex shapes).
         """
         qa = self.ur5.check_q(q)
-        pairs = self._selected(check_table, check_object, check_self, ignore_hand_object)
-        return self._check(qa, pairs, self._margins(margin, table_margin, self_margin), distances)
+        selection = self._selected(check_table, check_object, check_self, ignore_hand_object)
+        return self._check(qa, selection, self._margins(margin, table_margin, self_margin), distances)
 
-    def _check(self, q: FloatArray, pairs: list[_Pair], margins: dict[str, float], distances: bool) -> CollisionReport:
-        gm, gd = self._gm, self._gd
+    def _check(
+        self,
+        q: FloatArray,
+        selection: tuple[list[PairInfo], NDArray[np.intp]],
+        margins: dict[str, float],
+        distances: bool,
+        may_collide: NDArray[np.bool_] | None = None,
+    ) -> CollisionReport:
+        """Check the selected pairs at ``q`` [rad]: pairs the bounding volumes rule out (``may_collide``, computed
+        here when not given) are not asked of coal, except for the distances when ``distances`` (then every table
+        and object pair is measured)."""
+        gm, gd = self._w.gm, self._w.gd
         self._apply_margins(margins)
-        pin.updateGeometryPlacements(self._model, self._data, gm, gd, q)
+        pairs, _ = selection
+        if may_collide is None:
+            may_collide = self._may_collide(q[None, :], selection, margins)[0]
+        pin.forwardKinematics(self._model, self._data, q)
+        pin.updateGeometryPlacements(self._model, self._data, gm, gd)
         hits: list[tuple[str, str]] = []
         cats: set[str] = set()
         # smallest distances: [arm+hand vs table, arm+hand vs object, hand vs table, hand vs object]
         dmin: list[float | None] = [None, None, None, None]
-        for p in pairs:
-            if pin.computeCollision(gm, gd, p.index):
+        for p, maybe in zip(pairs, may_collide.tolist(), strict=True):
+            if not maybe and not (distances and p.category != "self"):
+                continue
+            if maybe and pin.computeCollision(gm, gd, p.index):
                 hits.append(p.names)
                 cats.add(p.category)
             if distances and p.category != "self":
@@ -297,6 +261,17 @@ class CollisionWorld:
                     dmin[slot + 2] = min_optional(dmin[slot + 2], d)
         reasons = [REASON_OF[c] for c in CATEGORY_ORDER if c in cats]
         return make_report(bool(hits), hits, reasons, dmin)
+
+    def _may_collide(
+        self, Q: FloatArray, selection: tuple[list[PairInfo], NDArray[np.intp]], margins: dict[str, float]
+    ) -> NDArray[np.bool_]:
+        """Broad phase at every row of ``Q`` ``(W, 6)`` [rad]: ``(W, P)``, which selected pairs may collide."""
+        _, idx = selection
+        by_code = np.array([margins["table"], margins["object"], margins["self"]])
+        R, t = self._w.broad.joint_placements(self._model, self._data, Q)
+        return self._w.broad.candidates(
+            R, t, self._w.pair_a[idx], self._w.pair_b[idx], by_code[self._w.pair_category[idx]]
+        )
 
     def check_waypoints(
         self,
@@ -323,15 +298,19 @@ class CollisionWorld:
             raise InvalidInput(f"expected an (N, {self.ur5.nq}) array of configurations", field="qs")
         if not np.all(np.isfinite(Q)):
             raise InvalidInput("contains NaN or infinite values", field="qs")
-        pairs = self._selected(check_table, check_object, check_self, ignore_hand_object)
+        selection = self._selected(check_table, check_object, check_self, ignore_hand_object)
         m = self._margins(margin, table_margin, self_margin)
         hits: list[tuple[str, str]] = []
         reasons: list[str] = []
         first: int | None = None
         dmin: list[float | None] = [None, None, None, None]
         checked = 0
+        masks = self._may_collide(Q, selection, m)  # every waypoint at once
         for i, q in enumerate(Q):
-            r = self._check(q, pairs, m, distances)
+            if not distances and not masks[i].any():
+                checked += 1  # nothing can collide here and no distance is asked: free
+                continue
+            r = self._check(q, selection, m, distances, masks[i])
             checked += 1
             for j, d in enumerate(
                 (

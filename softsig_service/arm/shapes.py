@@ -7,16 +7,18 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal, Protocol
+from typing import Literal, Protocol, TypeVar
 
 import coal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from softsig_service.errors import InvalidInput
+from softsig_service.geometry.content_cache import ContentCache
 from softsig_service.geometry.transforms import check_transform
 
 FloatArray = NDArray[np.float64]
+GeometryT = TypeVar("GeometryT", bound=coal.CollisionGeometry)
 
 HandKind = Literal["box", "capsule", "sphere", "cylinder"]
 ObjectKind = Literal["box", "cylinder", "sphere", "ellipsoid", "mesh"]
@@ -85,6 +87,8 @@ class ShapeSpec(Protocol):
     @property
     def vertices(self) -> FloatArray | None: ...
 
+    # optional: ``content_key`` (str), a digest of the mesh's content; the hull is then built once per key
+
 
 @dataclass(frozen=True, eq=False)
 class ObjectShape:
@@ -93,6 +97,11 @@ class ObjectShape:
     kind: ObjectKind
     size: tuple[float, ...] = ()
     vertices: FloatArray | None = None
+
+
+_MESH_HULLS: ContentCache[coal.ConvexBase] = ContentCache(size=64)
+"""coal convex hulls of meshes by content key (qhull on a 40k-vertex scan takes tens of milliseconds). A hull is
+shared read-only by every collision world and thread."""
 
 
 def coal_primitive(kind: str, size: Sequence[float]) -> coal.CollisionGeometry:
@@ -108,6 +117,14 @@ def coal_primitive(kind: str, size: Sequence[float]) -> coal.CollisionGeometry:
     if kind == "ellipsoid":
         return coal.Ellipsoid(size[0], size[1], size[2])
     raise InvalidInput(f"unknown shape kind {kind!r}", field="kind", value=kind)  # pragma: no cover
+
+
+def local_aabb(geometry: GeometryT) -> GeometryT:
+    """``geometry`` with its local AABB computed (``aabb_local``, ``aabb_center``, ``aabb_radius``, in its own frame
+    [m]), once: coal leaves ``aabb_radius`` at -1 until then, and a 40k-vertex hull takes ~0.3 ms to bound."""
+    if geometry.aabb_radius < 0.0:
+        geometry.computeLocalAABB()
+    return geometry
 
 
 def convex_hull(points: ArrayLike, field: str = "vertices") -> coal.ConvexBase:
@@ -132,9 +149,13 @@ def object_geometry(shape: ShapeSpec, field: str = "object") -> coal.CollisionGe
     if kind not in _OBJECT_SIZE_LEN:
         raise InvalidInput(f"unknown object kind {kind!r}", field=f"{field}.kind", value=kind, choices=_OBJECT_SIZE_LEN)
     if kind == "mesh":
-        if shape.vertices is None:
+        vertices = shape.vertices
+        if vertices is None:
             raise InvalidInput("a mesh needs vertices", field=f"{field}.vertices")
-        return convex_hull(shape.vertices, field=f"{field}.vertices")
+        key = getattr(shape, "content_key", None)
+        if key is None:
+            return convex_hull(vertices, field=f"{field}.vertices")
+        return _MESH_HULLS.get(str(key), lambda: local_aabb(convex_hull(vertices, field=f"{field}.vertices")))
     return coal_primitive(kind, check_shape_size(kind, shape.size, _OBJECT_SIZE_LEN, field))
 
 

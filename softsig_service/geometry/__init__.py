@@ -1,7 +1,8 @@
 """Pure geometry: rigid transforms and poses, quaternions, the minimum-volume enclosing ellipsoid, principal
-component analysis."""
+component analysis, and a cache keyed by array content."""
 
 from softsig_service.geometry.checks import as_finite_array, check_rotation, wire_number
+from softsig_service.geometry.content_cache import ContentCache, content_digest
 from softsig_service.geometry.ellipsoid import Ellipsoid, EllipsoidBatch, mvee, mvee_batch
 from softsig_service.geometry.pca import PrincipalComponents, orient_axes, principal_components
 from softsig_service.geometry.quaternions import (
@@ -37,6 +38,7 @@ from softsig_service.geometry.transforms import (
 )
 
 __all__ = [
+    "ContentCache",
     "Ellipsoid",
     "EllipsoidBatch",
     "Pose",
@@ -47,6 +49,7 @@ __all__ = [
     "check_rotation",
     "check_transform",
     "compose",
+    "content_digest",
     "invert",
     "make_transform",
     "matrix_to_quat",

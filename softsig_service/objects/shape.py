@@ -37,7 +37,7 @@ for closed sets, the valid choices. Pure numpy.
 
 from __future__ import annotations
 
-import dataclasses
+import copy
 import functools
 import math
 from dataclasses import dataclass
@@ -47,6 +47,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from softsig_service.errors import InvalidInput
+from softsig_service.geometry.content_cache import ContentCache, content_digest
 from softsig_service.geometry.transforms import make_transform, rot_y, rot_z
 from softsig_service.objects.checks import check_mesh, check_number, check_positive, check_positive_list
 from softsig_service.objects.footprint import convex_hull_2d, polygon_moments
@@ -71,6 +72,13 @@ _ISOTROPY_TOL = 1e-9
 _BELOW_TABLE_TOL = 1e-9
 """How far [m] an object's bottom may dip below the table top (rounding) before it counts as below."""
 
+_LYING_CYLINDER = make_transform(rot_y(math.pi / 2.0))
+"""Pose of a lying cylinder's primitive frame (axis = z) in the object frame (axis = x)."""
+_LYING_CYLINDER.setflags(write=False)
+
+_MESH_AXES: ContentCache[tuple[FloatArray, float, float, bool]] = ContentCache(size=64)
+"""Principal horizontal axes of meshes, by content digest (the footprint hull of a scan takes ~0.1 s)."""
+
 
 @dataclass(frozen=True, eq=False)
 class ShapePrimitive:
@@ -86,6 +94,8 @@ class ShapePrimitive:
     size: tuple[float, ...]
     vertices: FloatArray | None = None
     faces: IntArray | None = None
+    content_key: str | None = None
+    """A mesh's content digest (:attr:`TableObject.content_digest`): geometry built from it is cached by it."""
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -169,9 +179,15 @@ class TableObject:
 
     # -- geometry in the object frame ------------------------------------------------------------------------
 
-    @property
+    @functools.cached_property
     def half_extents(self) -> FloatArray:
-        """Half-sizes [m] of the object's bounding box along the object frame's x, y, z."""
+        """Half-sizes [m] of the object's bounding box along the object frame's x, y, z (read-only; computed once:
+        a mesh's takes a pass over its vertices)."""
+        h = np.array(self._half_extents(), dtype=np.float64)
+        h.setflags(write=False)
+        return h
+
+    def _half_extents(self) -> FloatArray:
         d = self.dimensions
         if self.kind == "box":
             return 0.5 * np.array(d)
@@ -191,25 +207,19 @@ class TableObject:
         return float(2.0 * self.half_extents[2])
 
     @functools.cached_property
+    def content_digest(self) -> str | None:
+        """A mesh's digest of its (re-centred) vertices and faces, None for the other kinds: the key under which
+        geometry built from the mesh (principal axes, collision hull) is cached."""
+        if self.vertices is None or self.faces is None:
+            return None
+        return content_digest(self.vertices, self.faces)
+
+    @functools.cached_property
     def _axes(self) -> tuple[FloatArray, float, float, bool]:
         """Major axis (2,) in the object frame, extent along it, extent across it [m], isotropic flag."""
         if self.kind == "mesh":
-            assert self.vertices is not None
-            hull = convex_hull_2d(self.vertices[:, :2])
-            if len(hull) < 3:
-                raise InvalidInput("the mesh's footprint has no area", field="object.vertices")
-            _, _, M = polygon_moments(hull)
-            w, U = np.linalg.eigh(M)
-            a1 = U[:, 1]
-            if a1[0] < -1e-12 or (abs(a1[0]) <= 1e-12 and a1[1] < 0.0):
-                a1 = -a1
-            a2 = np.array([-a1[1], a1[0]])
-            e1 = float(np.ptp(hull @ a1))
-            e2 = float(np.ptp(hull @ a2))
-            iso = bool(abs(w[1] - w[0]) <= 1e-9 * max(abs(w[1]), 1e-30))
-            if iso:
-                return np.array([1.0, 0.0]), e1, e2, True
-            return a1, e1, e2, False
+            assert self.content_digest is not None
+            return _MESH_AXES.get(self.content_digest, self._mesh_axes)
         hx, hy, _ = self.half_extents
         ex, ey = 2.0 * float(hx), 2.0 * float(hy)
         if abs(ex - ey) <= _ISOTROPY_TOL:
@@ -217,6 +227,25 @@ class TableObject:
         if ex > ey:
             return np.array([1.0, 0.0]), ex, ey, False
         return np.array([0.0, 1.0]), ey, ex, False
+
+    def _mesh_axes(self) -> tuple[FloatArray, float, float, bool]:
+        """:attr:`_axes` of a mesh: second moments of area of its footprint's convex hull."""
+        assert self.vertices is not None
+        hull = convex_hull_2d(self.vertices[:, :2])
+        if len(hull) < 3:
+            raise InvalidInput("the mesh's footprint has no area", field="object.vertices")
+        _, _, M = polygon_moments(hull)
+        w, U = np.linalg.eigh(M)
+        a1 = U[:, 1]
+        if a1[0] < -1e-12 or (abs(a1[0]) <= 1e-12 and a1[1] < 0.0):
+            a1 = -a1
+        a2 = np.array([-a1[1], a1[0]])
+        e1 = float(np.ptp(hull @ a1))
+        e2 = float(np.ptp(hull @ a2))
+        iso = bool(abs(w[1] - w[0]) <= 1e-9 * max(abs(w[1]), 1e-30))
+        axis = np.array([1.0, 0.0]) if iso else np.array(a1, dtype=np.float64)
+        axis.setflags(write=False)  # shared by every object with this mesh
+        return axis, e1, e2, iso
 
     # -- placement in the world -----------------------------------------------------------------------------
 
@@ -229,7 +258,10 @@ class TableObject:
     @property
     def pose(self) -> FloatArray:
         """``T_world_object`` (4x4): object frame at the centre, rotated by ``yaw`` about world z."""
-        return make_transform(rot_z(self.yaw), self.center)
+        T = np.eye(4)
+        T[:3, :3] = rot_z(self.yaw)  # a rotation by construction: not checked again
+        T[:3, 3] = self.center
+        return T
 
     @property
     def o1(self) -> FloatArray:
@@ -264,8 +296,17 @@ class TableObject:
         return float(self.center[2] + self.height / 2.0)
 
     def with_pose(self, x: float, y: float, yaw: float = 0.0) -> TableObject:
-        """The same object at another table pose (x, y [m], yaw [rad]), resting on the table."""
-        return dataclasses.replace(self, x=x, y=y, yaw=yaw, z=None)
+        """The same object at another table pose (x, y [m], yaw [rad]), resting on the table.
+
+        Only the pose is checked: the shape was validated when this object was built, and what was derived from it
+        (principal axes, a mesh's digest) is kept, so moving a 40k-vertex mesh costs no more than moving a box.
+        """
+        pose = {f: check_number(v, f"object.pose.{f}") for f, v in (("x", x), ("y", y), ("yaw", yaw))}
+        moved = copy.copy(self)
+        for f, v in pose.items():
+            object.__setattr__(moved, f, v)
+        object.__setattr__(moved, "z", None)
+        return moved
 
     # -- shape for collision checking and simulation ------------------------------------------------------
 
@@ -281,19 +322,26 @@ class TableObject:
             return ShapePrimitive("sphere", (d[0],))
         if self.kind == "ellipsoid":
             return ShapePrimitive("ellipsoid", tuple(d))
-        return ShapePrimitive("mesh", (), self.vertices, self.faces)
+        return ShapePrimitive("mesh", (), self.vertices, self.faces, self.content_digest)
 
     @property
     def primitive_in_object(self) -> FloatArray:
         """Pose (4x4) of the primitive frame in the object frame: a lying cylinder turns its z onto the x."""
         if self.kind == "cylinder" and not self.standing:
-            return make_transform(rot_y(math.pi / 2.0))
+            return _LYING_CYLINDER.copy()
         return np.eye(4)
 
     @property
     def primitive_pose(self) -> FloatArray:
         """Pose (4x4) ``T_world_primitive`` of :meth:`primitive`."""
         return self.pose @ self.primitive_in_object
+
+    @functools.cached_property
+    def _mesh_json(self) -> dict[str, list[list[float]] | list[list[int]]]:
+        """A mesh's ``vertices`` and ``faces`` as JSON lists, built once per object (read-only: shared by every
+        :meth:`to_json` of this object and of its moved copies)."""
+        assert self.vertices is not None and self.faces is not None
+        return {"vertices": self.vertices.tolist(), "faces": self.faces.tolist()}
 
     def to_json(self) -> dict[str, Any]:
         """The JSON spec of this object (see the module docstring); ``object_from_json`` reads it back."""
@@ -308,9 +356,7 @@ class TableObject:
         elif self.kind == "ellipsoid":
             spec["radii"] = list(d)
         else:
-            assert self.vertices is not None and self.faces is not None
-            spec["vertices"] = self.vertices.tolist()
-            spec["faces"] = self.faces.tolist()
+            spec.update(self._mesh_json)
         spec.update(mass=self.mass, friction=self.friction)
         if self.name:
             spec["name"] = self.name

@@ -1,15 +1,31 @@
 """Top-grasp planning for the UR5: strategies S and C, the wrist-pose NLP (CasADi), clearances and the planner."""
 
-from softsig_service.planning.clearance import Descent, HandClearance
-from softsig_service.planning.planner import GraspPlan, HandPlanningModel, Planner, PlanRequest, planning_model
+from softsig_service.planning.clearance import Descent, HandClearance, HandGeometry
+from softsig_service.planning.hand_model import (
+    DEFAULT_PLACEMENT,
+    PLACEMENTS,
+    HandPlanningModel,
+    Placement,
+    planning_model,
+)
+from softsig_service.planning.planner import GraspPlan, Planner, PlanRequest
 from softsig_service.planning.strategies import axis_angle_between_lines, strategy_s_poses
-from softsig_service.planning.wrist_pose import WristPoseSolution, hand_rotation, solve_wrist_pose
+from softsig_service.planning.wrist_pose import (
+    WristPoseSolution,
+    hand_rotation,
+    solve_wrist_pose,
+    solve_wrist_pose_unchecked,
+)
 
 __all__ = [
+    "DEFAULT_PLACEMENT",
+    "PLACEMENTS",
     "Descent",
     "GraspPlan",
     "HandClearance",
+    "HandGeometry",
     "HandPlanningModel",
+    "Placement",
     "PlanRequest",
     "Planner",
     "WristPoseSolution",
@@ -17,5 +33,6 @@ __all__ = [
     "hand_rotation",
     "planning_model",
     "solve_wrist_pose",
+    "solve_wrist_pose_unchecked",
     "strategy_s_poses",
 ]

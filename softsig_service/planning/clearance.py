@@ -15,7 +15,7 @@ import coal
 import numpy as np
 from numpy.typing import NDArray
 
-from softsig_service.arm.shapes import HandShape, object_geometry
+from softsig_service.arm.shapes import HandShape, local_aabb, object_geometry
 from softsig_service.objects import TableObject
 
 TABLE_HALF_THICKNESS = 0.05
@@ -39,16 +39,70 @@ class Descent:
     """[m] clearance to the nearest of table and object at the stop."""
 
 
-class HandClearance:
-    """Distances [m] from the open hand's primitives to the table and one object."""
+_TABLE_BOUND_SLACK = 1e-5
+"""[m] the exact height bound of a shape above the table is lowered by this before culling, so that coal's own
+rounding (its GJK tolerance is 1e-6) never drops the nearest shape."""
 
-    def __init__(self, hand_shapes: Sequence[HandShape], obj: TableObject | None, table_height: float) -> None:
-        self._shapes = [(s.geometry(), np.asarray(s.pose_in_hand)) for s in hand_shapes]
-        for geom, _ in self._shapes:
-            geom.computeLocalAABB()
-        # bounding spheres (centre in the hand frame, radius) for culling exact distance queries
-        self._centres = np.array([T[:3, 3] + T[:3, :3] @ g.aabb_center for g, T in self._shapes]).reshape(-1, 3)
-        self._radii = np.array([g.aabb_radius for g, _ in self._shapes])
+
+class HandGeometry:
+    """The hand's primitives as coal geometries with what culling needs, built once per hand.
+
+    Per shape (hand frame = ``tool0``): the coal geometry and its pose ``T_hand_shape``, the centre [m] and radius
+    [m] of its bounding sphere, and the terms of its exact lowest point along any direction: ``half_box`` ``(3,)``
+    [m] (box half-sizes; (0, 0, half-length) for a cylinder or capsule), ``disc`` [m] (a cylinder's radius) and
+    ``ball`` [m] (a sphere's or a capsule's radius). Read-only after construction: share it between threads.
+    """
+
+    def __init__(self, hand_shapes: Sequence[HandShape]) -> None:
+        self.shapes = [(s.geometry(), np.asarray(s.pose_in_hand)) for s in hand_shapes]
+        for geom, _ in self.shapes:
+            local_aabb(geom)
+        n = len(self.shapes)
+        self.rotations = np.array([T[:3, :3] for _, T in self.shapes]).reshape(n, 3, 3)
+        self.origins = np.array([T[:3, 3] for _, T in self.shapes]).reshape(n, 3)
+        self.centres = np.array([T[:3, 3] + T[:3, :3] @ g.aabb_center for g, T in self.shapes]).reshape(n, 3)
+        self.radii = np.array([g.aabb_radius for g, _ in self.shapes])
+        self.half_box = np.zeros((n, 3))
+        self.disc = np.zeros(n)
+        self.ball = np.zeros(n)
+        for i, s in enumerate(hand_shapes):
+            if s.kind == "box":
+                self.half_box[i] = s.size
+            elif s.kind == "sphere":
+                self.ball[i] = s.size[0]
+            else:  # capsule or cylinder: (radius, half-length), axis along the shape's z
+                self.half_box[i, 2] = s.size[1]
+                if s.kind == "cylinder":
+                    self.disc[i] = s.size[0]
+                else:
+                    self.ball[i] = s.size[0]
+
+    def lowest_points(self, T_world_hand: NDArray[np.float64]) -> NDArray[np.float64]:
+        """World z [m] of each shape's lowest point at the flange pose ``T_world_hand``."""
+        up = T_world_hand[2, :3] @ self.rotations  # (n, 3): world z in each shape's frame
+        z = self.origins @ T_world_hand[2, :3] + T_world_hand[2, 3]
+        across = np.sqrt(np.maximum(0.0, 1.0 - up[:, 2] ** 2))
+        return np.asarray(z - (np.abs(up) * self.half_box).sum(axis=1) - self.disc * across - self.ball)
+
+
+class HandClearance:
+    """Distances [m] from the open hand's primitives to the table and one object (one per plan and thread).
+
+    ``hand`` is the hand's :class:`HandGeometry` (built from ``hand_shapes`` when not given); the object's coal
+    geometry comes from :func:`~softsig_service.arm.shapes.object_geometry` (a mesh's is built once per content).
+    """
+
+    def __init__(
+        self,
+        hand_shapes: Sequence[HandShape],
+        obj: TableObject | None,
+        table_height: float,
+        hand: HandGeometry | None = None,
+    ) -> None:
+        self._hand = hand if hand is not None else HandGeometry(hand_shapes)
+        self._shapes = self._hand.shapes
+        self._centres = self._hand.centres
+        self._radii = self._hand.radii
         self._table_height = table_height
         self._table = coal.Box(6.0, 6.0, 2 * TABLE_HALF_THICKNESS)
         T_table = np.eye(4)
@@ -57,28 +111,44 @@ class HandClearance:
         self._object = None
         self._object_centre = np.zeros(3)
         self._object_radius = 0.0
+        self._object_R = np.eye(3)
+        self._object_half = np.zeros(3)
         if obj is not None:
-            geom = object_geometry(obj.primitive())
-            geom.computeLocalAABB()
+            geom = local_aabb(object_geometry(obj.primitive()))
             T_obj = obj.primitive_pose
             self._object = (geom, _tf(T_obj))
-            self._object_centre = T_obj[:3, 3] + T_obj[:3, :3] @ geom.aabb_center
+            lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
+            self._object_R = T_obj[:3, :3]
+            self._object_centre = T_obj[:3, 3] + T_obj[:3, :3] @ (0.5 * (lo + hi))
+            self._object_half = 0.5 * (hi - lo)
             self._object_radius = float(geom.aabb_radius)
         self._req = coal.DistanceRequest()
+        self._last: tuple[bytes, tuple[float, float]] | None = None  # the last pose asked and its answer
 
     def distances(self, T_world_hand: NDArray[np.float64]) -> tuple[float, float]:
         """(to the table, to the object) [m]; negative inside; +inf for a missing object.
 
-        Exact coal distances, queried only for shapes whose bounding sphere could beat the best found so far.
+        Exact coal distances, queried only for shapes whose lower bound could beat the best found so far: for the
+        table the exact height of the shape's lowest point above the plane (the table lies inside the half-space
+        below it), for the object the gap between the shape's bounding sphere and the object's bounding box (signed
+        distance in the object's primitive frame) or bounding sphere, whichever is larger.
         """
+        key = T_world_hand.tobytes()
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]  # the descent asks again at the pose where it stopped
         centres = self._centres @ T_world_hand[:3, :3].T + T_world_hand[:3, 3]
-        bound_table = centres[:, 2] - self._table_height - self._radii
+        bound_table = self._hand.lowest_points(T_world_hand) - self._table_height - _TABLE_BOUND_SLACK
         poses: dict[int, coal.Transform3s] = {}  # shape poses, built once per call for both queries
         d_table = self._nearest(T_world_hand, poses, bound_table, self._table, self._table_tf)
         d_obj = float("inf")
         if self._object is not None:
-            gap = np.linalg.norm(centres - self._object_centre, axis=1) - self._radii - self._object_radius
+            offset = centres - self._object_centre
+            excess = np.abs(offset @ self._object_R) - self._object_half  # > 0: outside the box along that axis
+            box_sdf = np.linalg.norm(np.maximum(excess, 0.0), axis=1) + np.minimum(excess.max(axis=1), 0.0)
+            gap = np.maximum(box_sdf, np.linalg.norm(offset, axis=1) - self._object_radius)
+            gap -= self._radii
             d_obj = self._nearest(T_world_hand, poses, gap, *self._object)
+        self._last = (key, (d_table, d_obj))
         return d_table, d_obj
 
     def _nearest(
@@ -90,13 +160,13 @@ class HandClearance:
         other_tf: coal.Transform3s,
     ) -> float:
         best = float("inf")
-        for k in np.argsort(lower_bounds):
+        for k in np.argsort(lower_bounds).tolist():
             if lower_bounds[k] >= best:
                 break
             geom, T_shape = self._shapes[k]
-            tf = poses.get(int(k))
+            tf = poses.get(k)
             if tf is None:
-                tf = poses[int(k)] = _tf(T_world_hand @ T_shape)
+                tf = poses[k] = _tf(T_world_hand @ T_shape)
             best = min(best, coal.distance(geom, tf, other, other_tf, self._req, coal.DistanceResult()))
         return best
 

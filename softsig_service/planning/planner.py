@@ -23,7 +23,6 @@ points hand +z (the approach) down. The planner:
 
 from __future__ import annotations
 
-import functools
 import math
 import threading
 import time
@@ -34,90 +33,36 @@ import numpy as np
 from numpy.typing import NDArray
 
 from softsig_service.arm.collision import CollisionWorld
-from softsig_service.arm.shapes import HandShape
 from softsig_service.arm.ur5 import HOME_Q, UR5, load_ur5
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
-from softsig_service.geometry.ellipsoid import mvee
+from softsig_service.geometry.checks import as_finite_array
 from softsig_service.geometry.quaternions import matrix_to_quat
 from softsig_service.geometry.transforms import Pose
-from softsig_service.hands.closure import simulate_closure
-from softsig_service.hands.collision_shapes import hand_collision_shapes
-from softsig_service.hands.model import load_hand
 from softsig_service.objects import TableObject
-from softsig_service.planning.clearance import HandClearance
+from softsig_service.planning.clearance import HandClearance, HandGeometry
+from softsig_service.planning.hand_model import (
+    DEFAULT_PLACEMENT,
+    PLACEMENTS,
+    HandPlanningModel,
+    Placement,
+    planning_model,
+)
 from softsig_service.planning.strategies import STRATEGIES, axis_angle_between_lines, strategy_s_poses
-from softsig_service.planning.wrist_pose import solve_wrist_pose
-from softsig_service.signatures.closure import compute_closure_signature
-from softsig_service.signatures.closure_types import CRITERIA, ClosureSignature, Criterion
+from softsig_service.planning.wrist_pose import solve_wrist_pose_unchecked
+from softsig_service.signatures.closure_types import CRITERIA, Criterion
 
 START_HEIGHT = 0.5
 """[m] the descent starts this far above the object's centre along the approach."""
 APPROACH_WAYPOINTS = 4
-Placement = Literal["open_centre", "grasp_centre", "previous"]
-PLACEMENTS: tuple[Placement, ...] = ("open_centre", "grasp_centre", "previous")
-"""Which hand point goes over the object's centre: c_0 of the open hand (both strategies, the default), c_T of
-the closed hand (both strategies), or the previous rule (S: the open reference points' bounding-box centre;
-C: the CS anchor)."""
-DEFAULT_PLACEMENT: Placement = "open_centre"
-
-
-@dataclass(frozen=True)
-class HandPlanningModel:
-    """What the planner needs of a hand, computed once: its CS, open reference points and collision shapes."""
-
-    name: str
-    signature: ClosureSignature
-    points_open: NDArray[np.float64]
-    """(N, 3) [m] open-hand reference points, hand frame."""
-    shapes: tuple[HandShape, ...]
-    bbox_center: NDArray[np.float64]
-    """[m] centre of the open reference points' bounding box, hand frame (strategy S, ``placement="previous"``)."""
-    open_centre: NDArray[np.float64]
-    """[m] centre c_0 of the open hand's reference-point ellipsoid (MVEE), hand frame."""
-    grasp_centre: NDArray[np.float64]
-    """[m] centre c_T of the closed hand's reference-point ellipsoid (MVEE), hand frame: where the hand closes to."""
-    closure: dict[str, Any]
-
-    def placement_point(self, strategy: str, placement: Placement) -> NDArray[np.float64]:
-        """The hand-frame point [m] the planner puts over the object's centre for ``strategy`` and ``placement``."""
-        if placement == "open_centre":
-            return self.open_centre
-        if placement == "grasp_centre":
-            return self.grasp_centre
-        return self.signature.anchor if strategy == "C" else self.bbox_center
-
-
-@functools.lru_cache(maxsize=32)
-def planning_model(
-    hand_ref: str, method: str = "ellipsoid", settings: Settings | None = None, criterion: Criterion = "absolute"
-) -> HandPlanningModel:
-    """Simulate the hand's closure once and derive its planning data (cached per hand, CS method and criterion)."""
-    hand = load_hand(hand_ref, settings)
-    traj = simulate_closure(hand, surface_points=800 if method == "mesh" else 0)
-    cs = compute_closure_signature(traj, method, criterion=criterion)  # type: ignore[arg-type]
-    P = traj.positions[0]
-    closure = {
-        "actuators": [hand.model.actuator(a).name for a in hand.closure_actuators],
-        "open": hand.closure_open.tolist(),
-        "closed": hand.closure_closed.tolist(),
-        "duration": hand.manifest.closure.duration,
-    }
-    return HandPlanningModel(
-        name=hand.name,
-        signature=cs,
-        points_open=P,
-        shapes=tuple(hand_collision_shapes(hand)),
-        bbox_center=(P.min(axis=0) + P.max(axis=0)) / 2,
-        open_centre=mvee(P).center,
-        grasp_centre=mvee(traj.positions[-1]).center,
-        closure=closure,
-    )
 
 
 @dataclass(frozen=True)
 class PlanRequest:
-    """A top-grasp request. ``current_q`` [rad] defaults to the UR5's ``HOME_Q``; distances in [m]."""
+    """A top-grasp request. ``current_q`` [rad] defaults to the UR5's ``HOME_Q``; distances in [m].
+
+    Validated here, once (the boundary): the planner's internal steps do not check their inputs again.
+    """
 
     hand: str
     obj: TableObject
@@ -137,6 +82,9 @@ class PlanRequest:
             raise InvalidInput("unknown placement", field="placement", value=self.placement, choices=PLACEMENTS)
         if self.cs_criterion not in CRITERIA:
             raise InvalidInput("unknown criterion", field="cs_criterion", value=self.cs_criterion, choices=CRITERIA)
+        if self.current_q is not None:
+            q = as_finite_array(self.current_q, (len(HOME_Q),), "current_q")
+            object.__setattr__(self, "current_q", tuple(float(v) for v in q))
         if self.closing_axis not in ("minor", "major"):
             raise InvalidInput("unknown closing axis", field="closing_axis", value=self.closing_axis,
                                choices=("minor", "major"))  # fmt: skip
@@ -208,19 +156,37 @@ class _Candidate:
 
 
 class Planner:
-    """Plans top grasps for a UR5; models and collision worlds are built once and reused (thread-safe)."""
+    """Plans top grasps for a UR5; models and collision worlds are built once and reused.
+
+    Thread-safe without a planner-wide lock: the mutable state is per thread (each thread has its own collision
+    worlds, Pinocchio data and compiled wrist-pose solvers); the hand geometry is shared read-only.
+    """
 
     def __init__(self, settings: Settings | None = None, ur5: UR5 | None = None) -> None:
         self.settings = settings
         self.ur5 = ur5 or load_ur5(settings.robots_dir if settings is not None else None)
-        self._worlds: dict[str, CollisionWorld] = {}
-        self._lock = threading.Lock()
+        self._local = threading.local()
+        self._hands: dict[str, HandGeometry] = {}
+        self._hands_lock = threading.Lock()
 
     def _world(self, model: HandPlanningModel, table_height: float) -> CollisionWorld:
+        """This thread's collision world for the hand ``model`` over a table at ``table_height`` [m]."""
+        worlds: dict[str, CollisionWorld] | None = getattr(self._local, "worlds", None)
+        if worlds is None:
+            worlds = self._local.worlds = {}
         key = f"{model.name}@{table_height:.6f}"
-        if key not in self._worlds:
-            self._worlds[key] = CollisionWorld(self.ur5, model.shapes, table_height=table_height)
-        return self._worlds[key]
+        world = worlds.get(key)
+        if world is None:
+            world = worlds[key] = CollisionWorld(self.ur5, model.shapes, table_height=table_height)
+        return world
+
+    def _hand(self, model: HandPlanningModel) -> HandGeometry:
+        """The hand's clearance geometry, built once per hand and shared by every thread."""
+        hand = self._hands.get(model.name)
+        if hand is None:
+            with self._hands_lock:
+                hand = self._hands.setdefault(model.name, HandGeometry(model.shapes))
+        return hand
 
     def plan(self, req: PlanRequest) -> GraspPlan:
         """Plan ``req``; never raises for an infeasible problem (``success=False`` with reasons)."""
@@ -228,53 +194,47 @@ class Planner:
         model = planning_model(req.hand, req.cs_method, self.settings, req.cs_criterion)
         obj = req.obj
         q_now = np.asarray(req.current_q if req.current_q is not None else HOME_Q, dtype=float)
-        q_now = self.ur5.check_q(q_now, field="current_q")
         closing = obj.o2 if req.closing_axis == "minor" else obj.o1
         center = obj.center
         hand_point = model.placement_point(req.strategy, req.placement)
 
-        # one plan at a time per planner: the compiled CasADi solvers, Pinocchio data and the coal world are
-        # shared state and not re-entrant
-        with self._lock:
-            t0 = time.perf_counter()
-            candidates: list[_Candidate] = []
-            if req.strategy == "C":
-                sols = solve_wrist_pose(
-                    model.signature.axis, hand_point, model.points_open, center, closing,
-                    table_height=obj.table_height, margin=req.margin,
-                )  # fmt: skip
-                for s in sols:
-                    c = _Candidate(T=s.T_world_hand, status=s.status, iterations=s.iterations)
-                    if not s.success:
-                        c.reasons.append(
-                            "alignment_impossible" if s.status == "alignment_impossible" else "unreachable"
-                        )
-                    candidates.append(c)
-            else:
-                for T in strategy_s_poses(center, obj.o1, hand_point):
-                    candidates.append(_Candidate(T=T, status="closed_form", iterations=0))
-            t_strategy = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        candidates: list[_Candidate] = []
+        if req.strategy == "C":
+            sols = solve_wrist_pose_unchecked(
+                model.signature.axis, hand_point, model.points_open, center, closing,
+                table_height=obj.table_height, margin=req.margin,
+            )  # fmt: skip
+            for s in sols:
+                c = _Candidate(T=s.T_world_hand, status=s.status, iterations=s.iterations)
+                if not s.success:
+                    c.reasons.append("alignment_impossible" if s.status == "alignment_impossible" else "unreachable")
+                candidates.append(c)
+        else:
+            for T in strategy_s_poses(center, obj.o1, hand_point):
+                candidates.append(_Candidate(T=T, status="closed_form", iterations=0))
+        t_strategy = time.perf_counter() - t0
 
-            t_ik = t_col = 0.0
-            world = self._world(model, obj.table_height)
-            world.set_object(obj.primitive(), obj.primitive_pose)
-            clearance = HandClearance(model.shapes, obj, obj.table_height)
-            for c in candidates:
-                if c.reasons:
-                    continue
-                t1 = time.perf_counter()
-                self._place(c, clearance, req, center)
-                t2 = time.perf_counter()
-                t_col += t2 - t1
-                if not c.reasons:
-                    self._solve_grasp(c, q_now)
-                t_ik += time.perf_counter() - t2
-            # the branch closest to the current configuration first; the other only if the first fails
-            for c in sorted((c for c in candidates if not c.reasons), key=lambda c: c.distance):
-                dt_ik, dt_col = self._finish(c, req, world)
-                t_ik, t_col = t_ik + dt_ik, t_col + dt_col
-                if not c.reasons:
-                    break
+        t_ik = t_col = 0.0
+        world = self._world(model, obj.table_height)
+        world.set_object_unchecked(obj.primitive(), obj.primitive_pose)
+        clearance = HandClearance(model.shapes, obj, obj.table_height, self._hand(model))
+        for c in candidates:
+            if c.reasons:
+                continue
+            t1 = time.perf_counter()
+            self._place(c, clearance, req, center)
+            t2 = time.perf_counter()
+            t_col += t2 - t1
+            if not c.reasons:
+                self._solve_grasp(c, q_now)
+            t_ik += time.perf_counter() - t2
+        # the branch closest to the current configuration first; the other only if the first fails
+        for c in sorted((c for c in candidates if not c.reasons), key=lambda c: c.distance):
+            dt_ik, dt_col = self._finish(c, req, world)
+            t_ik, t_col = t_ik + dt_ik, t_col + dt_col
+            if not c.reasons:
+                break
 
         feasible = [c for c in candidates if not c.reasons and c.q_pre is not None]
         best = min(feasible, key=lambda c: c.distance) if feasible else _most_advanced(candidates)
@@ -337,16 +297,15 @@ class Planner:
         Runs the same IK, approach and collision checks as :meth:`plan` on a pose given by the caller.
         """
         model = planning_model(req.hand, req.cs_method, self.settings, req.cs_criterion)
-        q_now = self.ur5.check_q(np.asarray(req.current_q or HOME_Q, dtype=float), field="current_q")
+        q_now = np.asarray(req.current_q or HOME_Q, dtype=float)
         c = _Candidate(T=np.asarray(T_grasp, dtype=float), status="given", iterations=0)
         c.T_pre = c.T.copy()
         c.T_pre[:3, 3] -= c.T[:3, 2] * req.approach_distance
-        with self._lock:
-            world = self._world(model, req.obj.table_height)
-            world.set_object(req.obj.primitive(), req.obj.primitive_pose)
-            self._solve_grasp(c, q_now)
-            if not c.reasons:
-                self._finish(c, req, world)
+        world = self._world(model, req.obj.table_height)
+        world.set_object_unchecked(req.obj.primitive(), req.obj.primitive_pose)
+        self._solve_grasp(c, q_now)
+        if not c.reasons:
+            self._finish(c, req, world)
         return c.reasons
 
     def _place(self, c: _Candidate, clearance: HandClearance, req: PlanRequest, center: NDArray[np.float64]) -> None:
@@ -365,7 +324,7 @@ class Planner:
         c.T_pre[:3, 3] -= direction * req.approach_distance
 
     def _solve_grasp(self, c: _Candidate, q_now: NDArray[np.float64]) -> None:
-        ik = self.ur5.solve_ik(c.T, q_now)
+        ik = self.ur5.solve_ik_unchecked(c.T, q_now)
         if not ik.success:
             c.reasons.append("unreachable")
             return
@@ -376,7 +335,7 @@ class Planner:
     def _approach_path(self, c: _Candidate, req: PlanRequest) -> list[NDArray[np.float64]] | None:
         """Joint configurations from the pre-grasp down the straight approach to the grasp (None: unreachable)."""
         assert c.q is not None and c.T_pre is not None
-        pre = self.ur5.solve_ik(c.T_pre, c.q)
+        pre = self.ur5.solve_ik_unchecked(c.T_pre, c.q)
         if not pre.success:
             c.reasons.append("unreachable:pre_grasp")
             return None
@@ -388,7 +347,7 @@ class Planner:
             s = k / APPROACH_WAYPOINTS
             T = c.T_pre.copy()
             T[:3, 3] = (1 - s) * c.T_pre[:3, 3] + s * c.T[:3, 3]
-            ik = self.ur5.solve_ik(T, q, analytic=False, seeds=0)
+            ik = self.ur5.solve_ik_unchecked(T, q, seeds=0)  # the closed-form branch nearest q, else numeric
             if not ik.success:
                 c.reasons.append("unreachable:approach")
                 return None

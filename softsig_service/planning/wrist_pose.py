@@ -32,8 +32,8 @@ from the closed-form solution of the untilted problem, with Ipopt as the fallbac
 
 from __future__ import annotations
 
-import functools
 import math
+import threading
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -110,8 +110,26 @@ _IPOPT_OPTIONS: dict[str, Any] = {
 """Ipopt (interior point): the fallback when the SQP does not converge."""
 
 
-@functools.lru_cache(maxsize=32)
+_LOCAL = threading.local()
+
+
 def _solver(n_points: int, method: str = "sqpmethod") -> tuple[ca.Function, int]:
+    """This thread's compiled solver for ``n_points`` reference points (built on first use in each thread).
+
+    A CasADi solver is not re-entrant (its ``stats()`` are those of the last call made with it), so threads never
+    share one: the service's threads plan in parallel without a lock around the NLP.
+    """
+    cache: dict[tuple[int, str], tuple[ca.Function, int]] | None = getattr(_LOCAL, "solvers", None)
+    if cache is None:
+        cache = _LOCAL.solvers = {}
+    hit = cache.get((n_points, method))
+    if hit is None:
+        hit = cache[(n_points, method)] = _build_solver(n_points, method)
+    return hit
+
+
+def _build_solver(n_points: int, method: str) -> tuple[ca.Function, int]:
+    """The wrist-pose NLP for ``n_points`` reference points, compiled with ``method`` (sqpmethod or ipopt)."""
     w = ca.SX.sym("w", 6)  # x, y, z, yaw, roll, pitch
     p = ca.SX.sym("p", 3 + 3 + 3 * n_points + 3 + 2 + 2)
     u, pa = p[0:3], p[3:6]
@@ -177,6 +195,23 @@ def solve_wrist_pose(
             raise InvalidInput("values must be finite", field=name)
     if np.linalg.norm(a) < 1e-9:
         raise InvalidInput("closing axis has no horizontal component", field="closing_axis")
+    return solve_wrist_pose_unchecked(u, pa, P, c, a, table_height=table_height, margin=margin)
+
+
+def solve_wrist_pose_unchecked(
+    u: NDArray[np.float64],
+    pa: NDArray[np.float64],
+    P: NDArray[np.float64],
+    c: NDArray[np.float64],
+    a: NDArray[np.float64],
+    *,
+    table_height: float = 0.0,
+    margin: float = 0.005,
+) -> list[WristPoseSolution]:
+    """:func:`solve_wrist_pose` for callers that pass checked values: ``u`` ``(3,)``, ``pa`` ``(3,)`` [m], ``P``
+    ``(N, 3)`` [m] (hand frame), ``c`` ``(3,)`` [m] and ``a`` (2 or 3 components with a horizontal part, world
+    frame), all finite float arrays. Nothing is validated again."""
+    a = np.asarray(a, dtype=float).ravel()[:2]
     a = a / np.linalg.norm(a)
     u = u / np.linalg.norm(u)
     horizontal = float(np.linalg.norm(u[:2]))

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from softsig_service import registry as repo
 from softsig_service.config import Settings
 from softsig_service.hands.model import builtin_hand_names
-from softsig_service.registry import repository as repo
 from softsig_service.registry.db import Registry
 from softsig_service.services.jobs import JobKind
 from softsig_service.services.tasks import inspect_hand

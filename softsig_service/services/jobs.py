@@ -33,9 +33,9 @@ from typing import Any
 
 from starlette.concurrency import run_in_threadpool
 
+from softsig_service import registry as repo
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput, SoftsigError
-from softsig_service.registry import repository as repo
 from softsig_service.registry.db import Registry
 from softsig_service.registry.models import utcnow
 from softsig_service.services.compute import _worker_init, error_payload, rebuild_error

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from starlette.concurrency import run_in_threadpool
 
-from softsig_service.registry import repository as repo
+from softsig_service import registry as repo
 from softsig_service.registry.db import Registry
 
 log = logging.getLogger("softsig.retention")

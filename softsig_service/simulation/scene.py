@@ -49,7 +49,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from softsig_service.arm.ur5 import FLANGE_FRAME, JOINT_NAMES, URDF_RELATIVE, find_robots_dir
+from softsig_service.arm.robots_dir import URDF_RELATIVE, find_robots_dir
+from softsig_service.arm.ur5 import FLANGE_FRAME, JOINT_NAMES
 from softsig_service.config import Settings, default_settings
 from softsig_service.errors import InvalidHandModel
 from softsig_service.hands.manifest import load_manifest

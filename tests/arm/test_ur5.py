@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from softsig_service.arm.ur5 import HOME_Q, JOINT_NAMES, UR5, find_robots_dir, load_ur5
+from softsig_service.arm.robots_dir import find_robots_dir
+from softsig_service.arm.ur5 import HOME_Q, JOINT_NAMES, UR5, load_ur5
 from softsig_service.config import Settings, default_settings
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.transforms import make_transform, rot_x, rot_z
@@ -234,3 +235,18 @@ def test_without_current_q_the_home_configuration_is_the_reference(ur5: UR5) -> 
     for s in every.solutions:
         dp, dr = UR5.pose_error(ur5.fk(s), target)
         assert dp <= 1e-5 and dr <= 1e-4
+
+
+def test_closed_form_at_the_wrist_singularity(ur5: UR5) -> None:
+    """With sin q5 = 0 the wrist's q6 is free: the branches take the caller's q6 and are still exact."""
+    P = ur5.ur_parameters
+    assert P is not None
+    q_true = np.array([0.3, -1.1, 1.4, -1.9, 0.0, 0.7])
+    target = ur5.fk(q_true)
+    branches = P.ik_array(target, q6_default=0.25)
+    assert len(branches) >= 2
+    singular = [b for b in branches if abs(math.sin(b[4])) < 1e-9]
+    assert singular and all(b[5] == pytest.approx(0.25) for b in singular)
+    for b in branches:
+        dp, dr = UR5.pose_error(ur5.fk(b), target)
+        assert dp < 1e-9 and dr < 1e-9

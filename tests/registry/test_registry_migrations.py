@@ -12,7 +12,7 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from sqlalchemy import Engine, text
 
-from softsig_service.registry import repository as repo
+from softsig_service import registry as repo
 from softsig_service.registry.db import Registry, make_engine
 from softsig_service.registry.migrate import FIRST_REVISION, SchemaTooNew, current_revision, head_revision, upgrade
 from softsig_service.registry.models import Base

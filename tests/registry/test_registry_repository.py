@@ -12,8 +12,8 @@ import pytest
 from db_backends import Backend
 from sqlalchemy import text
 
+from softsig_service import registry as repo
 from softsig_service.errors import Conflict, HandNotFound, NotFound, PreconditionFailed, ServiceBusy
-from softsig_service.registry import repository as repo
 from softsig_service.registry.db import Registry
 
 

@@ -28,6 +28,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, File, Path, Request, Response, UploadFile
 from starlette.concurrency import run_in_threadpool
 
+from softsig_service import registry as repo
 from softsig_service.api.deps import Ctx, IfMatchRequired, ReadAccess, WriteAccess
 from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, WRITE, Limit, Offset, page, problem
 from softsig_service.api.schemas import HAND_NAME_PATTERN, HandList, HandOut
@@ -36,13 +37,20 @@ from softsig_service.hands.archive import read_archive
 from softsig_service.hands.assets import check_relative_path
 from softsig_service.hands.manifest import HandManifest, manifest_from_dict
 from softsig_service.hands.xacro_expand import CACHE_DIR
-from softsig_service.registry import repository as repo
 from softsig_service.services.tasks import inspect_hand
 
 router = APIRouter(prefix="/v1", tags=["hands"])
 HandPath = Annotated[str, Path(pattern=HAND_NAME_PATTERN, description="the hand's name")]
 _CHUNK = 1 << 20
 _MODEL_FILE = "the MJCF (.xml), URDF (.urdf) or xacro (.xacro) file the manifest names"
+
+
+IF_MATCH: dict[int | str, dict[str, Any]] = {
+    412: problem("If-Match does not match the current ETag"),
+    428: problem("If-Match is required"),
+    **WRITE,
+}
+"""The responses of a write that needs the hand's ETag in If-Match."""
 
 
 def hand_summary(record: repo.HandRecord) -> dict[str, Any]:
@@ -281,9 +289,7 @@ def get_hand(ctx: Ctx, hand: HandPath, request: Request, response: Response) -> 
     dependencies=[WriteAccess],
     responses={
         409: problem("built-in hands cannot be replaced"),
-        412: problem("If-Match does not match the current ETag"),
-        428: problem("If-Match is required"),
-        **WRITE,
+        **IF_MATCH,
     },
     summary="Replace an uploaded hand's files (needs If-Match)",
 )
@@ -332,9 +338,7 @@ async def replace_hand(
     dependencies=[WriteAccess],
     responses={
         409: problem("built-in hands cannot be deleted"),
-        412: problem("If-Match does not match the current ETag"),
-        428: problem("If-Match is required"),
-        **WRITE,
+        **IF_MATCH,
     },
     summary="Delete an uploaded hand and its signatures (needs If-Match)",
 )

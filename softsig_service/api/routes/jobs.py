@@ -19,6 +19,7 @@ from fastapi import APIRouter, Path, Query
 from fastapi.responses import FileResponse, JSONResponse
 from starlette.concurrency import run_in_threadpool
 
+from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
 from softsig_service.api.deps import Ctx, ReadAccess, WriteAccess
 from softsig_service.api.job_responses import accepted, job_out
@@ -33,7 +34,6 @@ from softsig_service.api.schemas import (
 from softsig_service.errors import HandNotFound, InvalidInput, NotAvailable, NotFound
 from softsig_service.objects import object_from_json
 from softsig_service.objects.schema import object_json
-from softsig_service.registry import repository as repo
 from softsig_service.services.jobs import list_files, media_type, resolve_file
 
 router = APIRouter(prefix="/v1", tags=["jobs"])

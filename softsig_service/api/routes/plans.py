@@ -15,13 +15,13 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Path, Query, Response
 from starlette.concurrency import run_in_threadpool
 
+from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
 from softsig_service.api.deps import Ctx, ReadAccess, WriteAccess
 from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, WRITE, Limit, Offset, problem
 from softsig_service.api.schemas import HAND_NAME_PATTERN, PlanIn, PlanList, PlanOut
 from softsig_service.errors import HandNotFound, InvalidInput
 from softsig_service.objects.schema import object_json
-from softsig_service.registry import repository as repo
 from softsig_service.services.plan_image import render_plan_png
 from softsig_service.services.serialize import to_jsonable, vectors_as_objects
 
@@ -55,8 +55,7 @@ def make_plan(ctx: AppContext, body: PlanIn) -> dict[str, Any]:
         cs_criterion=body.cs_criterion,
         placement=body.placement,
     )
-    with ctx.plan_lock:
-        plan = ctx.planner.plan(request)
+    plan = ctx.planner.plan(request)  # thread-safe: per-thread solvers and collision worlds, no lock
     ctx.metrics.plan_seconds.labels(body.strategy).observe(plan.timing.get("total", 0.0))
     data: dict[str, Any] = vectors_as_objects(to_jsonable(plan.to_json_dict()))
     data["hand_revision"] = hand.revision

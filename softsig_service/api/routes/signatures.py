@@ -15,6 +15,7 @@ from fastapi import APIRouter, File, Form, Path, Query, Response, UploadFile
 from fastapi.responses import JSONResponse
 from starlette.concurrency import run_in_threadpool
 
+from softsig_service import registry as repo
 from softsig_service.api.deps import Ctx, IfMatchOptional, ReadAccess, WriteAccess
 from softsig_service.api.job_responses import accepted, stiffness_signature_version
 from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, SUBMIT_JOB, WRITE, Limit, Offset, problem
@@ -29,7 +30,6 @@ from softsig_service.api.schemas import (
     StiffnessSignatureIn,
 )
 from softsig_service.errors import InvalidTrajectory
-from softsig_service.registry import repository as repo
 from softsig_service.services.serialize import vectors_as_objects
 from softsig_service.services.tasks import closure_signature, markers_signature
 
@@ -65,6 +65,20 @@ def _criterion_param(method: str, criterion: str) -> dict[str, str]:
     return {"criterion": criterion} if method == "ellipsoid" else {}
 
 
+NEW_VERSION: dict[str, Any] = {
+    "status_code": 201,
+    "response_model": SignatureOut,
+    "dependencies": [WriteAccess],
+    "responses": {
+        404: problem("unknown hand"),
+        409: problem("the hand was replaced while the signature was computed"),
+        412: problem("If-Match does not match the latest version's ETag"),
+        **WRITE,
+    },
+}
+"""What the routes that store a new signature version declare: 201 with the version, write access, 404/409/412."""
+
+
 def _created(response: Response, rec: repo.SignatureRecord) -> dict[str, Any]:
     response.headers["Location"] = f"/v1/hands/{rec.hand}/signatures/{rec.version}"
     response.headers["ETag"] = rec.etag
@@ -73,15 +87,7 @@ def _created(response: Response, rec: repo.SignatureRecord) -> dict[str, Any]:
 
 @router.post(
     "/hands/{hand}/signatures/closure",
-    status_code=201,
-    response_model=SignatureOut,
-    dependencies=[WriteAccess],
-    responses={
-        404: problem("unknown hand"),
-        409: problem("the hand was replaced while the signature was computed"),
-        412: problem("If-Match does not match the latest version's ETag"),
-        **WRITE,
-    },
+    **NEW_VERSION,
     summary="Compute the closure signature from a simulated closure and store it as a new version",
 )
 async def create_closure_signature(
@@ -127,14 +133,7 @@ async def create_stiffness_signature(
 
 @router.post(
     "/hands/{hand}/signatures/markers",
-    status_code=201,
-    response_model=SignatureOut,
-    dependencies=[WriteAccess],
-    responses={
-        404: problem("unknown hand"),
-        412: problem("If-Match does not match the latest version's ETag"),
-        **WRITE,
-    },
+    **NEW_VERSION,
     summary="Upload tracked markers and store the closure signature computed from them",
 )
 async def upload_markers(

@@ -1,0 +1,85 @@
+"""Numeric inverse kinematics of a Pinocchio arm: damped least squares (Levenberg–Marquardt) on the SE(3) error.
+
+The error of a configuration ``q`` [rad] is ``log6(T_fk(q)^-1 T_target)`` (the flange frame's twist to the target,
+expressed in the flange frame: linear part [m], angular part [rad]); the step uses the flange's LOCAL frame
+Jacobian. Used where the closed form has no answer (a non-UR layout, targets the closed form misses) and to
+polish a closed-form seed that is not already exact.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+_EYE6 = np.eye(6)
+
+
+def lm_error(
+    model: pin.Model, data: pin.Data, frame_id: int, target: pin.SE3, q: FloatArray
+) -> tuple[pin.SE3, FloatArray, float, float, float]:
+    """(``T_fk(q)^-1 T_target``, its log6 ``(6,)``, position error [m], rotation error [rad], squared error)."""
+    pin.forwardKinematics(model, data, q)
+    iMd = pin.updateFramePlacement(model, data, frame_id).actInv(target)
+    e = np.asarray(pin.log6(iMd).vector)
+    t = np.asarray(iMd.translation)
+    w = e[3:]
+    return iMd, e, math.sqrt(float(t @ t)), math.sqrt(float(w @ w)), float(e @ e)
+
+
+def levenberg_marquardt(
+    model: pin.Model,
+    data: pin.Data,
+    frame_id: int,
+    target: pin.SE3,
+    q0: FloatArray,
+    max_iterations: int,
+    tol_p: float,
+    tol_r: float,
+) -> tuple[FloatArray, float, float, int, bool]:
+    """One damped least-squares run from ``q0`` [rad] towards ``target`` (``T_world_frame``).
+
+    A start already within ``1e-3`` of the tolerances returns at once (0 iterations, ``q0`` unchanged).
+    Returns (q [rad], position error [m], rotation error [rad], iterations, converged within ``tol_p`` [m] and
+    ``tol_r`` [rad]).
+    """
+    q = q0.copy()
+    iMd, e, pe, re, cost = lm_error(model, data, frame_id, target, q)
+    lam = 1e-3
+    it = 0
+    polish = 2  # once within tolerance, up to two more Newton steps towards 1e-3 of it
+    while it < max_iterations:
+        if pe <= tol_p and re <= tol_r:
+            if polish == 0 or (pe <= 1e-3 * tol_p and re <= 1e-3 * tol_r):
+                return q, pe, re, it, True
+            polish -= 1
+        it += 1
+        # J is d(log6(T_fk^-1 T_target))/dq; computeFrameJacobian also refreshes the kinematics at q.
+        J = pin.computeFrameJacobian(model, data, q, frame_id, pin.ReferenceFrame.LOCAL)
+        Je = -pin.Jlog6(iMd.inverse()) @ J
+        JtJ = Je.T @ Je
+        g = Je.T @ e
+        accepted = False
+        improvement = 0.0
+        while lam < 1e8:
+            dq = -np.linalg.solve(JtJ + lam * (_EYE6 + np.diag(np.diag(JtJ))), g)
+            q_new = q + dq
+            iMd_n, e_n, pe_n, re_n, cost_n = lm_error(model, data, frame_id, target, q_new)
+            if cost_n < cost:
+                q, iMd, e, pe, re = q_new, iMd_n, e_n, pe_n, re_n
+                lam = max(lam / 10.0, 1e-9)
+                accepted = True
+                improvement = cost - cost_n
+                cost = cost_n
+                break
+            lam *= 10.0
+        if not accepted:
+            break  # local minimum: no damped step lowers the error
+        if improvement < 1e-14 * max(cost, 1e-30) and float(np.linalg.norm(dq)) < 1e-12:
+            break
+    ok = pe <= tol_p and re <= tol_r
+    return q, pe, re, it, ok

@@ -1,0 +1,145 @@
+"""Closed-form inverse kinematics of a UR arm (the UR5's), from its standard DH table.
+
+Frames and units: ``base_link`` of the URDF is the DH base frame turned by pi about z; the flange is ``tool0``.
+Poses are 4x4 homogeneous transforms ``T_base_link_tool0`` with positions in [m]; joint positions in [rad].
+
+The eight branches (shoulder left/right x wrist up/down x elbow up/down) come in the order shoulder, wrist,
+elbow; each is exact up to rounding, so a numeric solver only has to confirm it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+_DH_ALPHA = (math.pi / 2.0, 0.0, 0.0, math.pi / 2.0, -math.pi / 2.0, 0.0)
+_RZ_PI = np.diag([-1.0, -1.0, 1.0, 1.0])
+"""``base_link`` is the DH base frame turned by pi about z (the URDF's note on ``base``)."""
+_ARGUMENT_SLACK = 1e-6
+"""A trigonometric argument outside [-1, 1] by more than this drops its branch (closer: clamped)."""
+_WRIST_SINGULAR = 1e-10
+"""Below this |sin q5| the wrist is singular and q6 is free."""
+
+
+def _dh_matrix(theta: float, d: float, a: float, alpha: float) -> FloatArray:
+    """One DH link transform (4x4) for joint angle ``theta`` [rad], offsets ``d``, ``a`` [m], twist ``alpha``."""
+    ct, st = math.cos(theta), math.sin(theta)
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    return np.array(
+        [
+            [ct, -st * ca, st * sa, a * ct],
+            [st, ct * ca, -ct * sa, a * st],
+            [0.0, sa, ca, d],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    )
+
+
+@dataclass(frozen=True)
+class URParameters:
+    """Standard DH lengths [m] of a UR arm: ``a = (0, -a2, -a3, 0, 0, 0)``, ``d = (d1, 0, 0, d4, d5, d6)``,
+    ``alpha = (pi/2, 0, 0, pi/2, -pi/2, 0)``. ``T_base_link_tool0(q) = Rz(pi) T_dh(q)``."""
+
+    d1: float
+    a2: float
+    a3: float
+    d4: float
+    d5: float
+    d6: float
+
+    def fk(self, q: ArrayLike) -> FloatArray:
+        """``T_base_link_tool0`` (4x4, [m]) from the DH table at ``q`` [rad]."""
+        a = (0.0, -self.a2, -self.a3, 0.0, 0.0, 0.0)
+        d = (self.d1, 0.0, 0.0, self.d4, self.d5, self.d6)
+        T = _RZ_PI.copy()
+        for i, th in enumerate(np.asarray(q, dtype=np.float64)):
+            T = T @ _dh_matrix(float(th), d[i], a[i], _DH_ALPHA[i])
+        return T
+
+    def ik(self, target: FloatArray, q6_default: float = 0.0) -> list[FloatArray]:
+        """Up to 8 closed-form solutions [rad] (in (-pi, pi]) for ``T_base_link_tool0 = target``, as a list
+        (see :meth:`ik_array`)."""
+        return list(self.ik_array(target, q6_default))
+
+    def ik_array(self, target: FloatArray, q6_default: float = 0.0) -> FloatArray:
+        """Closed-form solutions ``(k, 6)`` [rad], k <= 8, each joint in (-pi, pi], for ``T_base_link_tool0 =
+        target`` (4x4, [m]); ``(0, 6)`` when the target is out of reach. Rows in the order shoulder, wrist, elbow.
+
+        Branches whose trigonometric arguments leave [-1, 1] by more than 1e-6 are dropped; arguments just
+        outside are clamped. At the wrist singularity (sin q5 ~ 0) q6 is free and set to ``q6_default``.
+        Scalar arithmetic throughout (a few microseconds; numpy's per-call cost would dominate on 4x4 matrices).
+        """
+        T = (_RZ_PI @ target).tolist()  # Rz(pi) is its own inverse
+        R00, R01, R02, px = T[0]
+        R10, R11, R12, py = T[1]
+        R20, R21, R22, pz = T[2]
+        d1, d4, d5, d6 = self.d1, self.d4, self.d5, self.d6
+        x05, y05 = px - d6 * R02, py - d6 * R12
+        r = math.hypot(x05, y05)
+        if r < 1e-12 or abs(d4 / r) > 1.0 + _ARGUMENT_SLACK:
+            return np.zeros((0, 6))
+        phi = math.acos(max(-1.0, min(1.0, d4 / r)))
+        psi = math.atan2(y05, x05)
+        L2, L3 = -self.a2, -self.a3
+        out: list[tuple[float, ...]] = []
+        for q1 in (psi + phi + math.pi / 2.0, psi - phi + math.pi / 2.0):
+            s1, c1 = math.sin(q1), math.cos(q1)
+            c5 = (px * s1 - py * c1 - d4) / d6
+            if abs(c5) > 1.0 + _ARGUMENT_SLACK:
+                continue
+            a5 = math.acos(max(-1.0, min(1.0, c5)))
+            # columns of R turned into the shoulder's frame (frame 1 of the DH table)
+            u0, u1, u2 = R00 * c1 + R10 * s1, R01 * c1 + R11 * s1, R02 * c1 + R12 * s1
+            for q5 in (a5, -a5):
+                s5, c5b = math.sin(q5), math.cos(q5)
+                if abs(s5) < _WRIST_SINGULAR:
+                    q6 = q6_default
+                else:
+                    q6 = math.atan2((-R01 * s1 + R11 * c1) / s5, (R00 * s1 - R10 * c1) / s5)
+                s6, c6 = math.sin(q6), math.cos(q6)
+                # T14 = T01^-1 T T56^-1 T45^-1 (planar 2-link): its first column and its translation
+                t00 = c5b * (u0 * c6 - u1 * s6) - s5 * u2
+                t10 = c5b * (R20 * c6 - R21 * s6) - R22 * s5
+                x = px * c1 + py * s1 + d5 * (u0 * s6 + u1 * c6) - d6 * u2
+                y = pz - d1 - R22 * d6 + d5 * (R20 * s6 + R21 * c6)
+                c3 = (x * x + y * y - L2 * L2 - L3 * L3) / (2.0 * L2 * L3)
+                if abs(c3) > 1.0 + _ARGUMENT_SLACK:
+                    continue
+                a3 = math.acos(max(-1.0, min(1.0, c3)))
+                q234 = math.atan2(t10, t00)
+                for q3 in (a3, -a3):
+                    q2 = math.atan2(y, x) - math.atan2(L3 * math.sin(q3), L2 + L3 * math.cos(q3))
+                    out.append((q1, q2, q3, q234 - q2 - q3, q5, q6))
+        sol = np.array(out, dtype=np.float64).reshape(-1, 6)
+        return np.asarray(np.remainder(sol + math.pi, 2.0 * math.pi) - math.pi, dtype=np.float64)
+
+
+def ur_parameters(model: pin.Model, data: pin.Data, flange_frame_id: int) -> URParameters | None:
+    """DH lengths read off the model at q = 0 and checked against Pinocchio's FK at 10 random configurations;
+    None if they disagree (then only the numeric solver is used)."""
+    q0 = np.zeros(model.nq)
+    pin.forwardKinematics(model, data, q0)
+    o = [np.array(data.oMi[j].translation) for j in range(model.njoints)]
+    tool = np.array(pin.updateFramePlacement(model, data, flange_frame_id).translation)
+    params = URParameters(
+        d1=float(o[1][2]),
+        a2=float(abs(o[3][0] - o[2][0])),
+        a3=float(abs(o[4][0] - o[3][0])),
+        d4=float(o[5][1]),
+        d5=float(o[5][2] - o[6][2]),
+        d6=float(tool[1] - o[6][1]),
+    )
+    rng = np.random.default_rng(1234)
+    for _ in range(10):
+        q = rng.uniform(-math.pi, math.pi, model.nq)
+        pin.forwardKinematics(model, data, q)
+        T = np.array(pin.updateFramePlacement(model, data, flange_frame_id).homogeneous)
+        if not np.allclose(params.fk(q), T, atol=1e-9):
+            return None
+    return params

@@ -1,0 +1,83 @@
+"""What the planner needs of a hand, computed once per hand, CS method and criterion: its closure signature, open
+reference points, collision shapes and placement points.
+
+Frames and units: the hand frame (= the UR5 flange ``tool0``); lengths in [m].
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from softsig_service.arm.shapes import HandShape
+from softsig_service.config import Settings
+from softsig_service.geometry.ellipsoid import mvee
+from softsig_service.hands.closure import simulate_closure
+from softsig_service.hands.collision_shapes import hand_collision_shapes
+from softsig_service.hands.model import load_hand
+from softsig_service.signatures.closure import compute_closure_signature
+from softsig_service.signatures.closure_types import ClosureSignature, Criterion
+
+Placement = Literal["open_centre", "grasp_centre", "previous"]
+PLACEMENTS: tuple[Placement, ...] = ("open_centre", "grasp_centre", "previous")
+"""Which hand point goes over the object's centre: c_0 of the open hand (both strategies, the default), c_T of
+the closed hand (both strategies), or the previous rule (S: the open reference points' bounding-box centre;
+C: the CS anchor)."""
+DEFAULT_PLACEMENT: Placement = "open_centre"
+
+
+@dataclass(frozen=True)
+class HandPlanningModel:
+    """What the planner needs of a hand, computed once: its CS, open reference points and collision shapes."""
+
+    name: str
+    signature: ClosureSignature
+    points_open: NDArray[np.float64]
+    """(N, 3) [m] open-hand reference points, hand frame."""
+    shapes: tuple[HandShape, ...]
+    bbox_center: NDArray[np.float64]
+    """[m] centre of the open reference points' bounding box, hand frame (strategy S, ``placement="previous"``)."""
+    open_centre: NDArray[np.float64]
+    """[m] centre c_0 of the open hand's reference-point ellipsoid (MVEE), hand frame."""
+    grasp_centre: NDArray[np.float64]
+    """[m] centre c_T of the closed hand's reference-point ellipsoid (MVEE), hand frame: where the hand closes to."""
+    closure: dict[str, Any]
+
+    def placement_point(self, strategy: str, placement: Placement) -> NDArray[np.float64]:
+        """The hand-frame point [m] the planner puts over the object's centre for ``strategy`` and ``placement``."""
+        if placement == "open_centre":
+            return self.open_centre
+        if placement == "grasp_centre":
+            return self.grasp_centre
+        return self.signature.anchor if strategy == "C" else self.bbox_center
+
+
+@functools.lru_cache(maxsize=32)
+def planning_model(
+    hand_ref: str, method: str = "ellipsoid", settings: Settings | None = None, criterion: Criterion = "absolute"
+) -> HandPlanningModel:
+    """Simulate the hand's closure once and derive its planning data (cached per hand, CS method and criterion)."""
+    hand = load_hand(hand_ref, settings)
+    traj = simulate_closure(hand, surface_points=800 if method == "mesh" else 0)
+    cs = compute_closure_signature(traj, method, criterion=criterion)  # type: ignore[arg-type]
+    P = traj.positions[0]
+    closure = {
+        "actuators": [hand.model.actuator(a).name for a in hand.closure_actuators],
+        "open": hand.closure_open.tolist(),
+        "closed": hand.closure_closed.tolist(),
+        "duration": hand.manifest.closure.duration,
+    }
+    return HandPlanningModel(
+        name=hand.name,
+        signature=cs,
+        points_open=P,
+        shapes=tuple(hand_collision_shapes(hand)),
+        bbox_center=(P.min(axis=0) + P.max(axis=0)) / 2,
+        open_centre=mvee(P).center,
+        grasp_centre=mvee(traj.positions[-1]).center,
+        closure=closure,
+    )
