@@ -73,6 +73,14 @@ class Settings(BaseSettings):
     max_upload_bytes: int = Field(
         110_000_000, gt=0, description="largest multipart upload (hand files, marker files) [bytes]"
     )
+    max_markers_bytes: int = Field(16_000_000, gt=0, description="largest marker file upload [bytes]")
+    body_read_timeout: float = Field(
+        30.0, gt=0.0, description="longest wait for the next part of a request body before 408 [s]"
+    )
+    retention_days: float | None = Field(
+        None, gt=0.0, description="stored plans and finished jobs (with their files) older than this are removed"
+    )
+    retention_interval: float = Field(3600.0, gt=0.0, description="seconds between two retention purges")
     max_job_trials: int = Field(
         2000, gt=0, description="most simulated trials one validation or experiment job may run"
     )

@@ -81,6 +81,10 @@ class InvalidInput(SoftsigError):
     """Any other malformed numeric input (NaN, wrong shape, out of range)."""
 
 
+class ComputeFailed(SoftsigError):
+    """A computation on the request's input failed in an unforeseen way (logged with the request id; 422)."""
+
+
 class SolverError(SoftsigError):
     """A numerical solver that failed in a way that is not a plain infeasibility."""
 

@@ -7,13 +7,15 @@ manager, and marks jobs left unfinished by a previous run as failed. At shutdown
 worker processes.
 
 Routes live under ``/v1`` (``routes/``); ``/healthz``, ``/readyz`` and ``/metrics`` at the root. Middleware, from
-the outside in: request id + access log + metrics (``api/logging.py``), then the body limit (``api/problems.py``).
+the outside in: request id + access log + metrics (``api/logging.py``), the API key and the body read timeout
+(``api/guard.py``), then the body limits (``api/problems.py``).
 ``openapi/openapi.json`` is :func:`openapi_json` of an app with default settings (the schema does not depend on
 settings).
 """
 
 from __future__ import annotations
 
+import asyncio
 import json
 import logging
 from collections.abc import AsyncIterator, Mapping
@@ -26,6 +28,7 @@ from starlette.concurrency import run_in_threadpool
 from softsig_service import __version__
 from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
+from softsig_service.api.guard import AuthGateMiddleware
 from softsig_service.api.idempotency import IdempotencyMiddleware
 from softsig_service.api.logging import RequestContextMiddleware
 from softsig_service.api.problems import BodyLimitMiddleware, install_problem_handlers
@@ -36,11 +39,14 @@ from softsig_service.services.compute import ComputePool
 from softsig_service.services.job_kinds import default_job_kinds, register_builtin_hands
 from softsig_service.services.jobs import JobKind, JobManager
 from softsig_service.services.observability import Metrics
+from softsig_service.services.retention import retention_loop
 
 log = logging.getLogger("softsig.api")
 
-UPLOAD_PATHS: tuple[str, ...] = (r"/v1/hands", r"/v1/hands/[^/]+", r"/v1/hands/[^/]+/signatures/markers")
-"""Paths whose bodies are multipart uploads (limit ``max_upload_bytes``)."""
+UPLOAD_PATHS: tuple[str, ...] = (r"/v1/hands", r"/v1/hands/archive", r"/v1/hands/[^/]+")
+"""Paths whose bodies are multipart uploads of hands (limit ``max_upload_bytes``)."""
+MARKERS_PATH = r"/v1/hands/[^/]+/signatures/markers"
+"""The marker upload (limit ``max_markers_bytes``)."""
 
 DESCRIPTION = """\
 softsig over HTTP: a versioned registry of hands and their closure and stiffness signatures, top-grasp planning
@@ -89,6 +95,7 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
         )
         pool = ComputePool(settings.compute_workers, settings.compute_timeout)
         jobs = JobManager(registry, settings, kinds, jobs_dir, metrics)
+        purger: asyncio.Task[None] | None = None
         try:
             planner = await run_in_threadpool(_startup, settings, registry)
             await jobs.start()
@@ -104,9 +111,15 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
                 hands_dir=hands_dir,
                 plans_dir=plans_dir,
             )
+            if settings.retention_days is not None:
+                purger = asyncio.create_task(
+                    retention_loop(registry, settings.retention_days, settings.retention_interval, plans_dir, jobs_dir)
+                )
             log.info("softsig service ready (registry %s)", registry.engine.url.render_as_string(hide_password=True))
             yield
         finally:
+            if purger is not None:
+                purger.cancel()
             await jobs.shutdown()
             pool.shutdown()
             registry.dispose()
@@ -131,6 +144,13 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
         max_body_bytes=settings.max_body_bytes,
         max_upload_bytes=settings.max_upload_bytes,
         upload_paths=UPLOAD_PATHS,
+        route_limits=((MARKERS_PATH, settings.max_markers_bytes),),
+    )
+    app.add_middleware(
+        AuthGateMiddleware,
+        api_keys=[k.get_secret_value() for k in settings.api_keys],
+        read_auth=settings.read_auth,
+        body_read_timeout=settings.body_read_timeout,
     )
     from softsig_service.api.routes import hands, jobs, ops, plans, signatures
 

@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,21 +27,9 @@ class AppContext:
     api_keys: list[str]
     hands_dir: Path
     plans_dir: Path
-    _hand_cache: dict[str, repo.HandRecord] = field(default_factory=dict)
-    _lock: threading.Lock = field(default_factory=threading.Lock)
 
     def hand(self, name: str, *, field: str = "hand") -> repo.HandRecord:
-        """The registered hand ``name`` (cached; :meth:`forget_hand` after a change)."""
-        with self._lock:
-            cached = self._hand_cache.get(name)
-        if cached is not None:
-            return cached
-        record = repo.get_hand(self.registry, name, field=field)
-        with self._lock:
-            self._hand_cache[name] = record
-        return record
-
-    def forget_hand(self, name: str) -> None:
-        """Drop ``name`` from the hand cache."""
-        with self._lock:
-            self._hand_cache.pop(name, None)
+        """The registered hand ``name`` as the registry holds it now: another process of the service may have
+        replaced or deleted it, so it is read on every call (one indexed row; the compiled model is cached by
+        its manifest path, which changes with each revision)."""
+        return repo.get_hand(self.registry, name, field=field)

@@ -31,6 +31,7 @@ anything unexpected                   500     internal-error (a bug: never from 
 
 from __future__ import annotations
 
+import json
 import logging
 import re
 from typing import Any
@@ -58,9 +59,20 @@ from softsig_service.services.problems import (
 from softsig_service.validation import error_choices, field_path
 
 
+class ProblemResponse(JSONResponse):
+    """A problem body as ASCII JSON: a value echoed from the request may hold any code point, lone surrogates
+    included (they cannot be encoded as UTF-8, but ``\\udc80`` is valid JSON)."""
+
+    media_type = PROBLEM_MEDIA_TYPE
+
+    def render(self, content: Any) -> bytes:
+        """The body as compact ASCII JSON."""
+        return json.dumps(content, ensure_ascii=True, allow_nan=False, separators=(",", ":")).encode("ascii")
+
+
 def problem_response(status: int, body: dict[str, Any], headers: dict[str, str] | None = None) -> JSONResponse:
     """A JSONResponse with the problem media type."""
-    return JSONResponse(body, status_code=status, media_type=PROBLEM_MEDIA_TYPE, headers=headers)
+    return ProblemResponse(body, status_code=status, headers=headers)
 
 
 log = logging.getLogger("softsig.api")
@@ -160,24 +172,41 @@ def _limit_for(path: str, methods_upload: tuple[str, ...]) -> bool:
 class BodyLimitMiddleware:
     """Pure ASGI middleware: 413 problem when a request body exceeds its limit.
 
-    The limit is ``max_upload_bytes`` for paths matching one of ``upload_paths`` (regular expressions; the
+    The limit is the one of the first of ``route_limits`` (regular expression, bytes) whose pattern matches the
+    path, else ``max_upload_bytes`` for paths matching one of ``upload_paths`` (regular expressions; the
     multipart routes) and ``max_body_bytes`` for every other path. A ``Content-Length`` over the limit is refused
     before any byte is read; a body streamed without (or beyond) its ``Content-Length`` is counted as it arrives
     and refused as soon as it passes the limit.
     """
 
-    def __init__(self, app: Any, *, max_body_bytes: int, max_upload_bytes: int, upload_paths: tuple[str, ...]) -> None:
+    def __init__(
+        self,
+        app: Any,
+        *,
+        max_body_bytes: int,
+        max_upload_bytes: int,
+        upload_paths: tuple[str, ...],
+        route_limits: tuple[tuple[str, int], ...] = (),
+    ) -> None:
         self.app = app
         self.max_body = max_body_bytes
         self.max_upload = max_upload_bytes
         self.upload_paths = upload_paths
+        self.route_limits = route_limits
+
+    def limit(self, path: str) -> int:
+        """The body limit of ``path``: its own (``route_limits``), the upload limit or the general one."""
+        for pattern, limit in self.route_limits:
+            if re.fullmatch(pattern, path):
+                return limit
+        return self.max_upload if _limit_for(path, self.upload_paths) else self.max_body
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
         path = scope.get("path", "")
-        limit = self.max_upload if _limit_for(path, self.upload_paths) else self.max_body
+        limit = self.limit(path)
         declared: int | None = None
         for key, value in scope.get("headers", ()):
             if key == b"content-length":
@@ -196,7 +225,6 @@ class BodyLimitMiddleware:
             await problem_response(413, body, {"Connection": "close"})(scope, receive, send)
             return
         received = 0
-        started = False
 
         async def counting_receive() -> Any:
             nonlocal received
@@ -207,17 +235,28 @@ class BodyLimitMiddleware:
                     raise BodyTooLarge(limit, received)
             return message
 
-        async def tracking_send(message: Any) -> None:
-            nonlocal started
-            if message["type"] == "http.response.start":
-                started = True
-            await send(message)
+        await run_answering(self.app, scope, counting_receive, send, BodyTooLarge, "content-too-large")
 
-        try:
-            await self.app(scope, counting_receive, tracking_send)
-        except BodyTooLarge as exc:
-            if started:
-                raise
-            body = problem_body(413, slug="content-too-large", detail=str(exc.detail), instance=path,
-                                **exc.problem_extensions)  # fmt: skip
-            await problem_response(413, body, {"Connection": "close"})(scope, receive, send)
+
+async def run_answering(
+    app: Any, scope: Scope, receive: Receive, send: Send, error: type[StarletteHTTPException], slug: str
+) -> None:
+    """Run ``app``; an ``error`` raised by ``receive`` before the response started becomes its problem answer
+    (the connection closed), one raised after it is re-raised."""
+    started = False
+
+    async def tracking_send(message: Any) -> None:
+        nonlocal started
+        if message["type"] == "http.response.start":
+            started = True
+        await send(message)
+
+    try:
+        await app(scope, receive, tracking_send)
+    except error as exc:
+        if started:
+            raise
+        extensions = getattr(exc, "problem_extensions", {})
+        body = problem_body(exc.status_code, slug=slug, detail=str(exc.detail), instance=scope.get("path", ""),
+                            **extensions)  # fmt: skip
+        await problem_response(exc.status_code, body, {"Connection": "close"})(scope, receive, send)

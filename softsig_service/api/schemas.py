@@ -1,8 +1,9 @@
 """Request and response bodies of the REST API (pydantic; the boundary only, no behaviour).
 
 Request bodies are strict: unknown fields, NaN and infinities are rejected (``extra="forbid"``,
-``allow_inf_nan=False``) with a 422 problem naming the field. Response bodies allow extra keys, so that a field
-added to a result type reaches clients without a schema change.
+``allow_inf_nan=False``), and so are strings or booleans for numbers, numbers for booleans and floats for
+integers (``strict=True`` on every number and flag), with a 422 problem naming the field. Response bodies allow
+extra keys, so that a field added to a result type reaches clients without a schema change.
 
 Units and frames (docs/design.md §3): SI units (m, rad, s, kg, N); the world frame is the UR5 ``base_link`` (z
 up); poses are ``{"frame_id", "position": {x, y, z}, "orientation": {x, y, z, w}}`` (geometry_msgs order); signatures
@@ -27,7 +28,7 @@ HAND_NAME_PATTERN = r"^[a-z][a-z0-9_\-]{0,63}$"
 """Names of hands (the hand manifest's ``name`` rule)."""
 
 HandName = Annotated[str, Field(pattern=HAND_NAME_PATTERN, description="a registered hand's name")]
-JointAngle = Annotated[float, Field(ge=-7.0, le=7.0, description="[rad]")]
+JointAngle = Annotated[float, Field(ge=-7.0, le=7.0, strict=True, description="[rad]")]
 
 
 class Out(BaseModel):
@@ -209,8 +210,10 @@ class PlanIn(Strict):
     strategy: Literal["S", "C"]
     current_q: tuple[JointAngle, JointAngle, JointAngle, JointAngle, JointAngle, JointAngle] | None = None
     closing_axis: Literal["minor", "major"] = Field("minor", description="object axis the CS closes across (C)")
-    approach_distance: float = Field(0.10, ge=0.0, le=0.5, description="pre-grasp distance along the approach [m]")
-    margin: float = Field(0.005, ge=0.0, le=0.05, description="clearance kept from table and object [m]")
+    approach_distance: float = Field(
+        0.10, ge=0.0, le=0.5, strict=True, description="pre-grasp distance along the approach [m]"
+    )
+    margin: float = Field(0.005, ge=0.0, le=0.05, strict=True, description="clearance kept from table and object [m]")
     cs_method: CsMethod = "ellipsoid"
     cs_criterion: ClosureCriterion = Field(
         "absolute", description="ellipsoid CS criterion: absolute [m] (docs/design.md §4) or relative half-width change"
@@ -220,7 +223,9 @@ class PlanIn(Strict):
         description="hand point put over the object's centre: c_0 of the open hand or c_T of the closed hand "
         "(both strategies), or the previous per-strategy rule",
     )
-    store: bool = Field(True, description="store the plan (GET /v1/plans/{id}, image.png); false: id is null")
+    store: bool = Field(
+        True, strict=True, description="store the plan (GET /v1/plans/{id}, image.png); false: id is null"
+    )
 
 
 class Approach(Out):
@@ -297,11 +302,13 @@ class ValidationIn(Strict):
     hand: HandName = "pisa_iit_softhand"
     object: ObjectSpec
     strategy: Literal["S", "C"]
-    sigma_r: float = Field(0.0, ge=0.0, le=3.2, description="[rad]")
-    sigma_t: float = Field(0.0, ge=0.0, le=0.5, description="[m]")
-    trials: int = Field(1, ge=1, le=100_000)
-    seed: int = Field(0, ge=0, le=2**32 - 1)
-    time_limit: float | None = Field(None, gt=0.0, description="wall-time cap [s] (at most the service's cap)")
+    sigma_r: float = Field(0.0, ge=0.0, le=3.2, strict=True, description="[rad]")
+    sigma_t: float = Field(0.0, ge=0.0, le=0.5, strict=True, description="[m]")
+    trials: int = Field(1, ge=1, le=100_000, strict=True)
+    seed: int = Field(0, ge=0, le=2**32 - 1, strict=True)
+    time_limit: float | None = Field(
+        None, gt=0.0, strict=True, description="wall-time cap [s] (at most the service's cap)"
+    )
 
 
 class ExperimentIn(Strict):
@@ -310,10 +317,14 @@ class ExperimentIn(Strict):
 
     name: Literal["table1"] = "table1"
     hand: HandName = "pisa_iit_softhand"
-    trials: int = Field(20, ge=1, le=100_000, description="trials per cell")
-    seed: int = Field(0, ge=0, le=2**32 - 1)
-    workers: int | None = Field(None, ge=1, le=64, description="worker processes (default: the job's own choice)")
-    time_limit: float | None = Field(None, gt=0.0, description="wall-time cap [s] (at most the service's cap)")
+    trials: int = Field(20, ge=1, le=100_000, strict=True, description="trials per cell")
+    seed: int = Field(0, ge=0, le=2**32 - 1, strict=True)
+    workers: int | None = Field(
+        None, ge=1, le=64, strict=True, description="worker processes (default: the job's own choice)"
+    )
+    time_limit: float | None = Field(
+        None, gt=0.0, strict=True, description="wall-time cap [s] (at most the service's cap)"
+    )
 
 
 class JobOut(Out):

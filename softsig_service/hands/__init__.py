@@ -4,7 +4,6 @@ models for MuJoCo, closures, surfaces, summaries, archives and rendering."""
 from softsig_service.hands.archive import is_archive, pack_folder, read_archive
 from softsig_service.hands.assets import (
     ModelSource,
-    check_mjcf_paths,
     check_relative_path,
     load_urdf_source,
     read_model_text,
@@ -31,6 +30,7 @@ from softsig_service.hands.manifest import (
     manifest_from_dict,
 )
 from softsig_service.hands.mimic import Coupling, add_mimic_equalities, mimic_couplings, mimic_posture, strip_mimics
+from softsig_service.hands.mjcf_source import confine_spec, load_mjcf_source
 from softsig_service.hands.model import (
     HandModel,
     PointSpec,
@@ -75,11 +75,11 @@ __all__ = [
     "builtin_hand_names",
     "builtin_hands_dir",
     "cache_key",
-    "check_mjcf_paths",
     "check_relative_path",
     "closure_command",
     "closure_summary",
     "compile_hand",
+    "confine_spec",
     "draw_hand_frame",
     "expand",
     "expand_xacro",
@@ -93,6 +93,7 @@ __all__ = [
     "is_archive",
     "load_hand",
     "load_manifest",
+    "load_mjcf_source",
     "load_spec",
     "load_urdf_source",
     "main",

@@ -18,8 +18,11 @@ from pathlib import Path, PurePosixPath
 from softsig_service.config import ModelLimits
 from softsig_service.errors import InvalidHandModel, ModelTooLarge, UnsafePath
 
-_FILE_ATTRS = ("file", "filename")
-_DIR_ATTRS = ("meshdir", "texturedir", "assetdir")
+MAX_PATH_CHARS = 1024
+MAX_PATH_PARTS = 32
+MAX_NAME_BYTES = 200
+"""Limits of a file path in a hand's folder: characters, folders deep, bytes of one name (the file system's
+limit is 255; the rest is left for softsig's own suffixes)."""
 
 
 @dataclass(frozen=True)
@@ -35,38 +38,59 @@ def check_relative_path(ref: str, field: str) -> PurePosixPath:
     """``ref`` as a relative POSIX path, or :class:`UnsafePath` if it is absolute, a URL or climbs out with ``..``."""
     if ref.startswith(("file:", "http:", "https:", "/", "\\")) or (len(ref) > 1 and ref[1] == ":"):
         raise UnsafePath("asset paths must be relative to the hand's folder", field=field, value=ref)
+    if len(ref) > MAX_PATH_CHARS or ref.count("/") + ref.count("\\") >= MAX_PATH_PARTS:
+        raise UnsafePath(
+            f"asset paths are at most {MAX_PATH_CHARS} characters in at most {MAX_PATH_PARTS} parts", field=field,
+            value=ref,
+        )  # fmt: skip
     rel = PurePosixPath(ref.replace("\\", "/"))
     if ".." in rel.parts:
         raise UnsafePath("asset paths must not leave the hand's folder", field=field, value=ref)
+    for part in rel.parts:
+        try:
+            size = len(part.encode("utf-8"))
+        except UnicodeEncodeError:
+            raise UnsafePath("asset paths must be valid Unicode text", field=field, value=ref) from None
+        if size > MAX_NAME_BYTES or "\0" in part:
+            raise UnsafePath(f"a file or folder name is at most {MAX_NAME_BYTES} bytes", field=field, value=ref)
     return rel
 
 
-def _inside(folder: Path, rel: PurePosixPath, field: str, ref: str) -> Path:
-    path = (folder / rel).resolve()
+def inside(folder: Path, rel: PurePosixPath, field: str, ref: str) -> Path:
+    """``folder / rel`` with links resolved, or :class:`UnsafePath` (naming ``ref``) if that leaves ``folder``."""
+    try:
+        path = (folder / rel).resolve()
+    except (OSError, RuntimeError):
+        raise InvalidHandModel("referenced file cannot be read", field=field, value=ref) from None
     if not path.is_relative_to(folder.resolve()):
         raise UnsafePath("asset path resolves outside the hand's folder", field=field, value=ref)
     return path
 
 
-def _read_limited(path: Path, limit: int, field: str) -> bytes:
-    if not path.is_file():
-        raise InvalidHandModel("referenced file not found in the hand's folder", field=field, value=path.name)
-    size = path.stat().st_size
-    if size > limit:
-        raise ModelTooLarge(f"file larger than the limit of {limit} bytes", field=field, value=size)
-    return path.read_bytes()
+def read_limited(path: Path, limit: int, field: str, shown: str) -> bytes:
+    """The bytes of ``path`` (at most ``limit``); errors name ``field`` and ``shown`` (the model's own words)."""
+    try:
+        if not path.is_file():
+            raise InvalidHandModel("referenced file not found in the hand's folder", field=field, value=shown)
+        size = path.stat().st_size
+        if size > limit:
+            raise ModelTooLarge(f"file larger than the limit of {limit} bytes", field=field, value=size)
+        return path.read_bytes()
+    except OSError:
+        raise InvalidHandModel("referenced file cannot be read", field=field, value=shown) from None
 
 
 def read_model_text(path: Path, limits: ModelLimits, field: str = "model") -> str:
     """Read an MJCF/URDF file within the size limit; raise with ``field`` on a missing or oversized file."""
-    data = _read_limited(path, limits.max_model_bytes, field)
+    data = read_limited(path, limits.max_model_bytes, field, path.name)
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise InvalidHandModel("model file is not UTF-8 text", field=field, value=path.name) from exc
 
 
-def _parse(text: str, field: str) -> ET.Element:
+def parse_xml(text: str, field: str) -> ET.Element:
+    """The root element of ``text``, or :class:`InvalidHandModel` naming ``field``."""
     try:
         return ET.fromstring(text)
     except ET.ParseError as exc:
@@ -79,7 +103,7 @@ def _resolve_package(folder: Path, ref: str, field: str) -> Path:
     parts = PurePosixPath(check_relative_path(body, field))
     candidates = [PurePosixPath(*parts.parts[1:]), parts] if len(parts.parts) > 1 else [parts]
     for cand in candidates:
-        path = _inside(folder, cand, field, ref)
+        path = inside(folder, cand, field, ref)
         if path.is_file():
             return path
     raise InvalidHandModel(
@@ -105,13 +129,13 @@ def load_urdf_source(
     """
     folder = (hand_root or path.parent).resolve()
     if not path.resolve().is_relative_to(folder):
-        raise UnsafePath("the URDF must lie inside the hand's folder", field="model", value=str(path))
+        raise UnsafePath("the URDF must lie inside the hand's folder", field="model", value=path.name)
     if text is None:
         text = read_model_text(path, limits)
     elif len(text.encode()) > limits.max_model_bytes:
         raise ModelTooLarge(f"expanded URDF larger than {limits.max_model_bytes} bytes", field="model",
                             value=len(text.encode()))  # fmt: skip
-    root = _parse(text, "model")
+    root = parse_xml(text, "model")
     if root.tag != "robot":
         raise InvalidHandModel("a URDF's root element must be <robot>", field="model", value=root.tag)
     for link in root.iter("link"):
@@ -131,7 +155,7 @@ def load_urdf_source(
             file = (path.parent / rel).resolve()
             if not file.is_relative_to(folder):
                 raise UnsafePath("asset path resolves outside the hand's folder", field=field, value=ref)
-        data = _read_limited(file, limits.max_asset_bytes, field)
+        data = read_limited(file, limits.max_asset_bytes, field, ref)
         name = f"asset{k:04d}_{file.name}"
         assets[name] = data
         total += len(data)
@@ -156,45 +180,3 @@ def load_urdf_source(
         },
     )
     return ModelSource(xml=ET.tostring(root, encoding="unicode"), assets=assets, model_dir=folder)
-
-
-def check_mjcf_paths(path: Path, limits: ModelLimits, *, _seen: set[Path] | None = None) -> int:
-    """Check every file an MJCF (and its includes) refers to stays in its folder; return total bytes.
-
-    ``meshdir``/``texturedir``/``assetdir`` must be relative and inside the folder, and so must every
-    ``file`` attribute resolved against them.
-    """
-    seen = _seen if _seen is not None else set()
-    folder = path.parent
-    text = read_model_text(path, limits, field="model" if not seen else f"include {path.name}")
-    seen.add(path.resolve())
-    root = _parse(text, "model")
-    dirs: dict[str, PurePosixPath] = {}
-    for comp in root.iter("compiler"):
-        for attr in _DIR_ATTRS:
-            if comp.get(attr):
-                dirs[attr] = check_relative_path(comp.get(attr, ""), f"compiler.{attr}")
-    total = len(text)
-    count = 0
-    for k, el in enumerate(root.iter()):
-        for attr in _FILE_ATTRS:
-            ref = el.get(attr)
-            if ref is None:
-                continue
-            field = f"model: <{el.tag}> #{k} {attr}"
-            rel = check_relative_path(ref, field)
-            if el.tag == "include":
-                inc = _inside(folder, rel, field, ref)
-                if inc in seen:
-                    raise InvalidHandModel("include cycle", field=field, value=ref)
-                total += check_mjcf_paths(inc, limits, _seen=seen)
-                continue
-            base = dirs.get("meshdir" if el.tag in ("mesh", "skin") else "texturedir", dirs.get("assetdir"))
-            file = _inside(folder, (base / rel) if base else rel, field, ref)
-            total += len(_read_limited(file, limits.max_asset_bytes, field))
-            count += 1
-    if count > limits.max_assets:
-        raise ModelTooLarge(f"more than {limits.max_assets} asset files", field="model", value=count)
-    if total > limits.max_total_bytes:
-        raise ModelTooLarge(f"model and assets exceed {limits.max_total_bytes} bytes", field="model", value=total)
-    return total

@@ -292,7 +292,7 @@ def _known_fields(parent: tuple[int | str, ...]) -> list[str] | None:
 def load_manifest(path: Path, *, max_bytes: int = 2_000_000) -> HandManifest:
     """Read and validate ``hand.toml`` at ``path``."""
     if not path.is_file():
-        raise InvalidManifest("manifest file not found", field="path", value=str(path))
+        raise InvalidManifest("manifest file not found", field="path", value=path.name)
     if path.stat().st_size > max_bytes:
         raise InvalidManifest(f"manifest larger than {max_bytes} bytes", field="path", value=path.stat().st_size)
     try:

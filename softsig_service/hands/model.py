@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from softsig_service.config import ModelLimits, Settings, default_settings
 from softsig_service.errors import FrameNotFound, HandNotFound, InvalidHandModel, ModelTooLarge, UnsafePath
-from softsig_service.hands.assets import check_mjcf_paths, load_urdf_source
+from softsig_service.hands.assets import load_urdf_source
 from softsig_service.hands.manifest import HandManifest, PostureClosure, SynergyClosure, load_manifest
 from softsig_service.hands.mimic import (
     Coupling,
@@ -32,6 +32,7 @@ from softsig_service.hands.mimic import (
     mimic_posture,
     strip_mimics,
 )
+from softsig_service.hands.mjcf_source import confine_spec, load_mjcf_source
 from softsig_service.hands.mount_pose import apply_mount_pose, mount_transform
 from softsig_service.hands.synergy import add_synergy, synergy_controls, synergy_couplings
 from softsig_service.hands.xacro_expand import ExpandedUrdf, expand_xacro
@@ -107,7 +108,7 @@ def resolve_hand_path(ref: str, settings: Settings | None = None) -> Path:
     candidate = Path(ref)
     if candidate.suffix == ".toml":
         if not candidate.is_file():
-            raise HandNotFound("manifest file not found", field="hand", value=ref)
+            raise HandNotFound("manifest file not found", field="hand", value=candidate.name)
         return candidate.resolve()
     if candidate.is_dir() and (candidate / "hand.toml").is_file():
         return (candidate / "hand.toml").resolve()
@@ -157,16 +158,19 @@ def load_spec(manifest: HandManifest, folder: Path, limits: ModelLimits) -> Spec
                 raise InvalidHandModel("model file not found in the hand's folder", field="model", value=manifest.model)
             expanded = expand_xacro(model_path, folder, manifest.xacro_mappings(), limits)
         src = load_urdf_source(model_path, limits, hand_root=folder, text=expanded.xml if expanded else None)
-        try:
-            spec = mujoco.MjSpec.from_string(strip_mimics(src.xml), assets=src.assets)
-        except ValueError as exc:
-            raise InvalidHandModel(f"MuJoCo cannot parse the URDF: {exc}", field="model") from None
-        return SpecSource(spec, src.xml, expanded)
-    check_mjcf_paths(model_path, limits)
+        return SpecSource(_parse_spec(strip_mimics(src.xml), src.assets, "URDF"), src.xml, expanded)
+    src = load_mjcf_source(model_path, limits)
+    return SpecSource(_parse_spec(src.xml, src.assets, "MJCF"))
+
+
+def _parse_spec(xml: str, assets: dict[str, bytes], kind: str) -> mujoco.MjSpec:
+    """Parse ``xml`` with only ``assets`` to read from, every file of the spec confined to them."""
     try:
-        return SpecSource(mujoco.MjSpec.from_file(str(model_path)))
+        spec = mujoco.MjSpec.from_string(xml, assets=assets)
     except ValueError as exc:
-        raise InvalidHandModel(f"MuJoCo cannot parse the MJCF: {exc}", field="model") from None
+        raise InvalidHandModel(f"MuJoCo cannot parse the {kind}: {exc}", field="model") from None
+    confine_spec(spec, assets)
+    return spec
 
 
 def hand_spec(manifest: HandManifest, folder: Path, limits: ModelLimits) -> mujoco.MjSpec:

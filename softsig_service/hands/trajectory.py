@@ -87,11 +87,11 @@ class ClosureTrajectory:
             raise InvalidTrajectory("point_names must be a list of strings", field="point_names")
         try:
             times = np.asarray(data["times"], dtype=np.float64)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, RecursionError) as exc:
             raise InvalidTrajectory("times must be a list of numbers", field="times") from exc
         try:
             positions = np.asarray(data["positions"], dtype=np.float64)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, RecursionError) as exc:
             raise InvalidTrajectory(
                 "positions must be a [T][N][3] array of numbers (ragged or non-numeric data found)",
                 field="positions",

@@ -73,6 +73,11 @@ def check_mesh(vertices: ArrayLike, faces: ArrayLike, field: str) -> tuple[Float
             field=f"{field}.faces",
             value=[int(F.min()), int(F.max())],
         )
+    repeated = np.flatnonzero((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2]))
+    if repeated.size:
+        k = int(repeated[0])
+        raise InvalidInput("a face must name three different vertices", field=f"{field}.faces[{k}]",
+                           value=[int(i) for i in F[k]])  # fmt: skip
     centred = V - V.mean(axis=0)
     sv = np.linalg.svd(centred, compute_uv=False)
     if sv[-1] <= 1e-9 * max(float(sv[0]), 1e-12):

@@ -13,7 +13,12 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
-Length = Annotated[float, Field(gt=0.0, le=5.0, strict=True, description="[m]")]
+MIN_LENGTH = 1e-4
+"""Smallest length of an object [m] (0.1 mm): below it MuJoCo cannot simulate the object."""
+MIN_MASS = 1e-4
+"""Smallest mass of an object [kg] (0.1 g)."""
+Length = Annotated[float, Field(ge=MIN_LENGTH, le=5.0, strict=True, description="[m]")]
+Mass = Annotated[float, Field(ge=MIN_MASS, le=1000.0, strict=True, description="[kg]")]
 Coordinate = Annotated[float, Field(ge=-10.0, le=10.0, strict=True, description="[m]")]
 Index = Annotated[int, Field(ge=0, strict=True, description="0-based vertex index")]
 Angle = Annotated[float, Field(ge=-100.0, le=100.0, strict=True, description="[rad]")]
@@ -37,7 +42,7 @@ class ObjectPose(Strict):
 
 
 class _ObjectBase(Strict):
-    mass: float = Field(gt=0.0, le=1000.0, strict=True, description="[kg]")
+    mass: Mass
     friction: float = Field(1.0, gt=0.0, le=10.0, strict=True, description="sliding friction coefficient")
     name: str = Field("", max_length=64)
     pose: ObjectPose = Field(default_factory=ObjectPose)
@@ -87,7 +92,7 @@ class BuiltinObjectSpec(Strict):
 
     kind: Literal["builtin"]
     name: Literal["box", "apple", "cylinder"]
-    mass: float | None = Field(None, gt=0.0, le=1000.0, strict=True, description="[kg]")
+    mass: Mass | None = None
     friction: float | None = Field(None, gt=0.0, le=10.0, strict=True)
     pose: ObjectPose | None = None
 

@@ -29,6 +29,7 @@ from softsig_service.registry.jobs import (
     get_job,
     interrupt_unfinished_jobs,
     list_jobs,
+    purge_jobs,
     request_cancel,
     update_job,
 )
@@ -43,7 +44,7 @@ from softsig_service.registry.models import (
     UTCDateTime,
     utcnow,
 )
-from softsig_service.registry.plans import PlanRecord, add_plan, get_plan, list_plans
+from softsig_service.registry.plans import PlanRecord, add_plan, delete_plan, get_plan, list_plans, purge_plans
 from softsig_service.registry.signatures import (
     SignatureRecord,
     add_signature,
@@ -76,6 +77,7 @@ __all__ = [
     "complete_key",
     "current_revision",
     "delete_hand",
+    "delete_plan",
     "etag_matches",
     "find_key",
     "get_hand",
@@ -94,6 +96,8 @@ __all__ = [
     "list_signatures",
     "make_engine",
     "purge_expired_keys",
+    "purge_jobs",
+    "purge_plans",
     "release_key",
     "replace_hand",
     "request_cancel",

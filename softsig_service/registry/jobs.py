@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import uuid
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import func, select
+from sqlalchemy import delete, func, select
 
 from softsig_service.errors import Conflict, NotFound
 from softsig_service.registry.db import Registry
@@ -147,3 +147,14 @@ def interrupt_unfinished_jobs(reg: Registry, reason: str) -> int:
             row.error = {"type": "interrupted", "title": "Interrupted", "detail": reason}
             row.finished_at = utcnow()
         return len(rows)
+
+
+def purge_jobs(reg: Registry, older_than: timedelta) -> list[str]:
+    """Remove the finished jobs that finished more than ``older_than`` ago; their ids."""
+    with reg.write() as s:
+        cutoff = utcnow() - older_than
+        done = JobRow.status.not_in(UNFINISHED) & (JobRow.finished_at < cutoff)
+        ids = list(s.scalars(select(JobRow.id).where(done)).all())
+        if ids:
+            s.execute(delete(JobRow).where(JobRow.id.in_(ids)))
+        return ids

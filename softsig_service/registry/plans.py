@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import uuid
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import func, select
+from sqlalchemy import delete, func, select
 
 from softsig_service.errors import NotFound
 from softsig_service.registry.db import Registry
-from softsig_service.registry.models import PlanRow
+from softsig_service.registry.models import PlanRow, utcnow
 
 
 @dataclass(frozen=True)
@@ -71,3 +71,22 @@ def list_plans(
             q, n = q.where(PlanRow.hand == hand), n.where(PlanRow.hand == hand)
         rows = s.scalars(q.order_by(PlanRow.created_at.desc(), PlanRow.id).limit(limit).offset(offset)).all()
         return [_plan(r) for r in rows], int(s.execute(n).scalar_one())
+
+
+def delete_plan(reg: Registry, plan_id: str) -> None:
+    """Remove the plan ``plan_id``; :class:`NotFound` if there is none."""
+    with reg.write() as s:
+        row = s.get(PlanRow, plan_id)
+        if row is None:
+            raise NotFound("no such plan", field="plan_id", value=plan_id)
+        s.delete(row)
+
+
+def purge_plans(reg: Registry, older_than: timedelta) -> list[str]:
+    """Remove the plans stored more than ``older_than`` ago; their ids."""
+    with reg.write() as s:
+        cutoff = utcnow() - older_than
+        ids = list(s.scalars(select(PlanRow.id).where(PlanRow.created_at < cutoff)).all())
+        if ids:
+            s.execute(delete(PlanRow).where(PlanRow.id.in_(ids)))
+        return ids

@@ -14,16 +14,21 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import contextlib
+import logging
 import multiprocessing
+import traceback
 from collections.abc import Callable, Mapping
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from softsig_service import errors
-from softsig_service.errors import ServiceBusy, SoftsigError, TimeLimitExceeded
+from softsig_service.errors import ComputeFailed, ServiceBusy, SoftsigError, TimeLimitExceeded
+from softsig_service.services.lifeline import follow_parent
+from softsig_service.services.observability import request_id_var
 from softsig_service.services.problems import short_value
 
 _MP = multiprocessing.get_context("spawn")
+log = logging.getLogger("softsig.compute")
 
 
 # errors across processes
@@ -60,12 +65,20 @@ def _capture(fn: Callable[..., Any], args: tuple[Any, ...]) -> tuple[str, Any]:
         return "ok", fn(*args)
     except SoftsigError as exc:
         return "error", error_payload(exc)
+    except (Exception, RecursionError):  # a bug or an input nobody foresaw: the traceback goes to the log only
+        return "crash", traceback.format_exc(limit=20)[-20_000:]
 
 
 def _worker_init() -> None:
     from softsig_service.gl_backend import prepare_mujoco
 
     prepare_mujoco()
+
+
+def _pool_init() -> None:
+    """Initializer of a compute-pool worker: it dies with the service, and MuJoCo is prepared."""
+    follow_parent()
+    _worker_init()
 
 
 def _noop() -> None:
@@ -91,7 +104,7 @@ class ComputePool:
             raise ServiceBusy("the service is shutting down", field=None)
         if self._executor is None:
             self._executor = concurrent.futures.ProcessPoolExecutor(
-                max_workers=self.workers, mp_context=_MP, initializer=_worker_init
+                max_workers=self.workers, mp_context=_MP, initializer=_pool_init
             )
         return self._executor
 
@@ -136,6 +149,12 @@ class ComputePool:
             raise ServiceBusy(f"a worker process died during {what}; retry", field=field) from None
         if status == "error":
             raise rebuild_error(payload)
+        if status == "crash":
+            log.error("unexpected error in a worker %s (request %s):\n%s", what, request_id_var.get(), payload)
+            raise ComputeFailed(
+                f"{what} failed on this input; the request id identifies the failure in the service's log",
+                field=field,
+            )
         return payload
 
     def shutdown(self) -> None:

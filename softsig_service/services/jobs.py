@@ -39,6 +39,7 @@ from softsig_service.errors import InvalidInput, SoftsigError
 from softsig_service.registry.db import Registry
 from softsig_service.registry.models import utcnow
 from softsig_service.services.compute import _worker_init, error_payload, rebuild_error
+from softsig_service.services.lifeline import follow_parent
 from softsig_service.services.observability import Metrics
 from softsig_service.services.problems import softsig_problem
 from softsig_service.services.serialize import to_jsonable
@@ -98,6 +99,7 @@ def _job_main(job_id: str, target: str, params: dict[str, Any], out_dir: str, co
     """Entry point of a job's process."""
     with contextlib.suppress(OSError, AttributeError):
         os.setpgrp()  # its own process group: killing the group stops the workers it starts
+    follow_parent(whole_group=True)  # the job and its workers die with the service
     _worker_init()
     try:
         module, _, name = target.partition(":")

@@ -19,6 +19,7 @@ import csv
 import io
 import json
 import math
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -32,6 +33,14 @@ if TYPE_CHECKING:
     from _csv import Reader
 
 CSV_COLUMNS: tuple[str, ...] = ("time", "point", "x", "y", "z")
+MAX_ROWS = 100_000
+"""Data rows of a marker CSV at the most (a closure of 1,000 samples of 100 points)."""
+MAX_POINTS = 256
+"""Distinct point names of a marker file at the most."""
+MAX_JSON_DEPTH = 32
+"""Nesting of a marker JSON at the most (a trajectory needs 4)."""
+MAX_CELL_CHARS = 1_000
+"""Characters of one CSV cell at the most."""
 SUFFIXES: tuple[str, ...] = (".csv", ".json")
 
 
@@ -66,6 +75,14 @@ def parse_markers_csv(
     """Parse marker CSV text (see the module docstring) into a :class:`ClosureTrajectory` of hand ``hand``."""
     text = text.removeprefix("\ufeff")
     reader = csv.reader(io.StringIO(text))
+    try:
+        return _parse_rows(reader, hand, expected_points)
+    except csv.Error as exc:
+        raise InvalidTrajectory(f"malformed CSV: {exc}", field=f"row {reader.line_num}") from None
+
+
+def _parse_rows(reader: Reader, hand: str, expected_points: Sequence[str] | None) -> ClosureTrajectory:
+    """The rows of ``reader`` (header first) as a trajectory, streamed row by row within the caps."""
     header = _read_header(reader)
     col = {name: header.index(name) for name in CSV_COLUMNS}
     expected = set(expected_points) if expected_points is not None else None
@@ -82,8 +99,15 @@ def parse_markers_csv(
             raise InvalidTrajectory(
                 f"expected {len(header)} fields ({','.join(header)})", field=f"row {row}", value=len(cells)
             )
+        if len(values) >= MAX_ROWS:
+            raise InvalidTrajectory(f"more than {MAX_ROWS} data rows", field="rows", value=row)
         t = _number(cells[col["time"]], row, "time")
         name = cells[col["point"]].strip()
+        if len(name) > MAX_CELL_CHARS:
+            raise InvalidTrajectory(f"a point name is at most {MAX_CELL_CHARS} characters", field=f"row {row}: point",
+                                    value=name)  # fmt: skip
+        if name not in names and len(names) >= MAX_POINTS:
+            raise InvalidTrajectory(f"more than {MAX_POINTS} points", field=f"row {row}: point", value=name)
         if not name:
             raise InvalidTrajectory("point name is empty", field=f"row {row}: point")
         if expected is not None and name not in expected:
@@ -114,7 +138,10 @@ def parse_markers_csv(
             f"at least {MIN_POINTS} reference points are needed", field="point", value=list(point_names)
         )
     sorted_times = sorted(times)
-    positions = np.empty((len(sorted_times), len(point_names), 3))
+    if len(values) == len(sorted_times) * len(point_names):
+        positions = np.empty((len(sorted_times), len(point_names), 3))
+    else:  # some sample is missing: find it below without allocating T x N
+        positions = np.empty((1, len(point_names), 3))
     for ti, t in enumerate(sorted_times):
         for pi, name in enumerate(point_names):
             found = values.get((t, name))
@@ -125,7 +152,7 @@ def parse_markers_csv(
                     field=f"time {t!r}",
                     value=missing,
                 )
-            positions[ti, pi] = found
+            positions[min(ti, len(positions) - 1), pi] = found
     return ClosureTrajectory(
         hand=hand,
         times=np.asarray(sorted_times, dtype=np.float64),
@@ -137,14 +164,45 @@ def parse_markers_csv(
 
 def parse_markers_json(text: str, *, expected_points: Sequence[str] | None = None) -> ClosureTrajectory:
     """Parse trajectory JSON (as :meth:`ClosureTrajectory.to_json_dict` writes it) into a trajectory."""
+    text = text.removeprefix("\ufeff")
+    deep = _too_deep(text)
+    if deep is not None:
+        raise InvalidTrajectory(f"the JSON is nested deeper than {MAX_JSON_DEPTH} levels", field=deep)
     try:
-        data = json.loads(text.removeprefix("\ufeff"))
+        data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise InvalidTrajectory(f"invalid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})", field="$") from exc
+    except RecursionError:
+        raise InvalidTrajectory("the JSON is nested too deeply", field="$") from None
     traj = ClosureTrajectory.from_json_dict(data)
     if expected_points is not None:
         _check_expected(traj.point_names, expected_points)
     return traj
+
+
+_JSON_TOKENS = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]')
+
+
+def _too_deep(text: str) -> str | None:
+    """Where ``text`` nests deeper than :data:`MAX_JSON_DEPTH` (the top-level key, or ``$``), else None."""
+    depth, key, last = 0, "$", ""
+    for match in _JSON_TOKENS.finditer(text):
+        token = match.group()
+        if token[0] == '"':
+            last = token
+        elif token in "[{":
+            if depth == 1 and last:
+                key = last[1:-1]
+            depth += 1
+            if depth > MAX_JSON_DEPTH:
+                return key
+        else:
+            depth -= 1
+            if depth == 1:
+                key = "$"
+        if token[0] != '"' and depth != 1:
+            last = ""
+    return None
 
 
 def _read_header(reader: Reader) -> list[str]:

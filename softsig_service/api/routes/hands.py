@@ -17,6 +17,7 @@ description that reads outside its folder, reads the environment or runs a comma
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import shutil
 import tomllib
@@ -126,6 +127,7 @@ async def _write_upload(ctx: Any, manifest: UploadFile, model: UploadFile, asset
             value=model.filename, choices=[model_suffix],
         )  # fmt: skip
     files: dict[str, bytes] = {"hand.toml": manifest_bytes}
+    fields = {"hand.toml": "manifest", model_rel: "model"}
     files[model_rel] = await _read_limited(model, limits.max_model_bytes, "model")
     if len(assets) > limits.max_assets:
         raise ModelTooLarge(f"more than {limits.max_assets} asset files", field="assets", value=len(assets))
@@ -135,16 +137,29 @@ async def _write_upload(ctx: Any, manifest: UploadFile, model: UploadFile, asset
         rel = _relative(upload.filename or "", field)
         if rel in files or rel.lower() == "hand.toml":
             raise InvalidHandModel("two files have the same path", field=field, value=rel)
+        fields[rel] = field
         files[rel] = await _read_limited(upload, limits.max_asset_bytes, field)
         total += len(files[rel])
         if total > limits.max_total_bytes:
             raise ModelTooLarge(f"the hand's files exceed {limits.max_total_bytes} bytes", field=field, value=total)
-    folder, listing = await _store(ctx, man, files)
+    folder, listing = await _store(ctx, man, files, fields)
     return man, folder, listing
 
 
-async def _store(ctx: Any, man: HandManifest, files: dict[str, bytes]) -> tuple[FsPath, list[dict[str, Any]]]:
+def _check_layout(files: dict[str, bytes], fields: dict[str, str]) -> None:
+    """No file may also be a folder of another (``a`` and ``a/b.stl``), whatever their order."""
+    folders = {"/".join(rel.split("/")[:k]): rel for rel in files for k in range(1, rel.count("/") + 1)}
+    for rel in files:
+        if rel in folders:
+            raise InvalidHandModel("a file has the path of another file's folder", field=fields.get(rel, "archive"),
+                                   value=rel, choices=[folders[rel]])  # fmt: skip
+
+
+async def _store(
+    ctx: Any, man: HandManifest, files: dict[str, bytes], fields: dict[str, str] | None = None
+) -> tuple[FsPath, list[dict[str, Any]]]:
     """Write checked files into a fresh folder of the hand; returns the folder and the file list."""
+    _check_layout(files, fields or {})
     folder = ctx.hands_dir / man.name / uuid.uuid4().hex
 
     def write() -> list[dict[str, Any]]:
@@ -153,8 +168,12 @@ async def _store(ctx: Any, man: HandManifest, files: dict[str, bytes]) -> tuple[
             path = (folder / rel).resolve()
             if not path.is_relative_to(folder.resolve()):
                 raise UnsafePath("file path leaves the hand's folder", field="assets", value=rel)
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_bytes(data)
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                path.write_bytes(data)
+            except OSError:
+                where = (fields or {}).get(rel, "archive")
+                raise InvalidHandModel("the file cannot be stored at this path", field=where, value=rel) from None
             listing.append({"path": rel, "size": len(data), "sha256": hashlib.sha256(data).hexdigest()})
         return listing
 
@@ -162,14 +181,17 @@ async def _store(ctx: Any, man: HandManifest, files: dict[str, bytes]) -> tuple[
     try:
         listing = await run_in_threadpool(write)
     except BaseException:
-        shutil.rmtree(folder, ignore_errors=True)
+        _remove(folder)
         raise
     return folder, listing
 
 
 def _remove(folder: str | FsPath | None) -> None:
+    """Remove a revision's folder, and the hand's folder above it when that is left empty."""
     if folder is not None:
         shutil.rmtree(folder, ignore_errors=True)
+        with contextlib.suppress(OSError):
+            FsPath(folder).parent.rmdir()
 
 
 @router.get("/hands", response_model=HandList, dependencies=[ReadAccess], responses=READ, summary="List hands")
@@ -239,7 +261,6 @@ async def _register(
     except BaseException:
         _remove(folder)
         raise
-    ctx.forget_hand(record.name)
     response.headers["Location"] = f"/v1/hands/{record.name}"
     response.headers["ETag"] = record.etag
     return hand_out(record)
@@ -305,7 +326,6 @@ async def replace_hand(
     except BaseException:
         _remove(folder)
         raise
-    ctx.forget_hand(hand)
     _remove(old)
     response.headers["ETag"] = record.etag
     return hand_out(record)
@@ -325,6 +345,5 @@ async def replace_hand(
 def delete_hand(ctx: Ctx, hand: HandPath, if_match: IfMatchRequired) -> Response:
     """Delete an uploaded hand, its signature versions and its files. Stored plans of it stay."""
     record = repo.delete_hand(ctx.registry, hand, if_match=if_match)
-    ctx.forget_hand(hand)
     _remove(record.folder)
     return Response(status_code=204)

@@ -114,6 +114,21 @@ def get_plan(ctx: Ctx, plan_id: PlanId) -> dict[str, Any]:
     return _plan_out(repo.get_plan(ctx.registry, plan_id))
 
 
+@router.delete(
+    "/plans/{plan_id}",
+    status_code=204,
+    response_class=Response,
+    dependencies=[WriteAccess],
+    responses=WRITE,
+    summary="Delete a stored plan and its image",
+)
+def delete_plan(ctx: Ctx, plan_id: PlanId) -> Response:
+    """Remove a stored plan and its cached image; 404 if there is none."""
+    repo.delete_plan(ctx.registry, plan_id)
+    (ctx.plans_dir / f"{plan_id}.png").unlink(missing_ok=True)
+    return Response(status_code=204)
+
+
 @router.get(
     "/plans/{plan_id}/image.png",
     response_class=Response,
