@@ -40,11 +40,13 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Sequence
+from typing import TypedDict
 
 import coal
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
+from typing_extensions import Unpack
 
 from softsig_service.arm.arm_geometry import arm_geometry
 from softsig_service.arm.collision_model import PairInfo, WorldModel, build_world_model
@@ -72,6 +74,32 @@ FloatArray = NDArray[np.float64]
 
 _BUILT_WORLDS = 8
 """How many object shapes a world keeps built (least recently used dropped), so that objects can alternate."""
+
+
+class CheckOptions(TypedDict, total=False):
+    """Options of a collision check (:meth:`CollisionWorld.check`); every one may be left out.
+
+    ``margin``, ``table_margin``, ``self_margin``: security margins [m] of the object, table and self pairs
+    (default: the world's); ``ignore_hand_object``: leave out the hand-shape/object pairs (default False);
+    ``check_table``, ``check_object``, ``check_self``: which pair groups to check (default all);
+    ``distances``: also compute the smallest distances [m] to the table and the object (default True).
+    """
+
+    margin: float | None
+    table_margin: float | None
+    self_margin: float | None
+    ignore_hand_object: bool
+    check_table: bool
+    check_object: bool
+    check_self: bool
+    distances: bool
+
+
+class PathOptions(CheckOptions, total=False):
+    """:class:`CheckOptions` of a sequence of configurations, and ``stop_at_first`` (default True): stop at the
+    first colliding configuration."""
+
+    stop_at_first: bool
 
 
 class CollisionWorld:
@@ -196,34 +224,22 @@ class CollisionWorld:
             hit = self._w.selections[key] = (sel, np.array([p.index for p in sel], dtype=np.intp))
         return hit
 
-    def check(
-        self,
-        q: ArrayLike,
-        *,
-        margin: float | None = None,
-        table_margin: float | None = None,
-        self_margin: float | None = None,
-        ignore_hand_object: bool = False,
-        check_table: bool = True,
-        check_object: bool = True,
-        check_self: bool = True,
-        distances: bool = True,
-    ) -> CollisionReport:
-        """Check the configuration ``q`` (``(6,)`` [rad]).
-
-        Args:
-            q: UR5 joint positions [rad].
-            margin: security margin [m] of the object pairs (default: the world's ``margin``).
-            table_margin: security margin [m] of the table pairs (default: the world's ``table_margin``).
-            self_margin: security margin [m] of the self pairs (default: the world's ``self_margin``).
-            ignore_hand_object: leave out the hand-shape/object pairs (at a grasp the hand touches it).
-            check_table, check_object, check_self: which pair groups to check.
-            distances: also compute the smallest distances [m] to the table and to the object (cheap: a few
-                GJK calls on convex shapes).
-        """
+    def check(self, q: ArrayLike, **options: Unpack[CheckOptions]) -> CollisionReport:
+        """Check the UR5 configuration ``q`` (``(6,)`` [rad]) with the :class:`CheckOptions` given (margins [m],
+        pair groups, distances)."""
         qa = self.ur5.check_q(q)
-        selection = self._selected(check_table, check_object, check_self, ignore_hand_object)
-        return self._check(qa, selection, self._margins(margin, table_margin, self_margin), distances)
+        selection, margins, distances = self._options(options)
+        return self._check(qa, selection, margins, distances)
+
+    def _options(self, o: CheckOptions) -> tuple[tuple[list[PairInfo], NDArray[np.intp]], dict[str, float], bool]:
+        """The pairs selected, the margins [m] and whether distances are asked, from a call's options."""
+        selection = self._selected(o.get("check_table", True), o.get("check_object", True),
+                                   o.get("check_self", True), o.get("ignore_hand_object", False))  # fmt: skip
+        return (
+            selection,
+            self._margins(o.get("margin"), o.get("table_margin"), o.get("self_margin")),
+            o.get("distances", True),
+        )
 
     def _check(
         self,
@@ -273,20 +289,7 @@ class CollisionWorld:
             R, t, self._w.pair_a[idx], self._w.pair_b[idx], by_code[self._w.pair_category[idx]]
         )
 
-    def check_waypoints(
-        self,
-        qs: Sequence[ArrayLike] | ArrayLike,
-        *,
-        margin: float | None = None,
-        table_margin: float | None = None,
-        self_margin: float | None = None,
-        ignore_hand_object: bool = False,
-        check_table: bool = True,
-        check_object: bool = True,
-        check_self: bool = True,
-        distances: bool = True,
-        stop_at_first: bool = True,
-    ) -> CollisionReport:
+    def check_waypoints(self, qs: Sequence[ArrayLike] | ArrayLike, **options: Unpack[PathOptions]) -> CollisionReport:
         """Check a sequence of configurations (e.g. IK solutions along a straight approach).
 
         The report merges the waypoints: ``pairs``/``reasons`` of every colliding waypoint checked (only the
@@ -298,8 +301,8 @@ class CollisionWorld:
             raise InvalidInput(f"expected an (N, {self.ur5.nq}) array of configurations", field="qs")
         if not np.all(np.isfinite(Q)):
             raise InvalidInput("contains NaN or infinite values", field="qs")
-        selection = self._selected(check_table, check_object, check_self, ignore_hand_object)
-        m = self._margins(margin, table_margin, self_margin)
+        selection, m, distances = self._options(options)
+        stop_at_first = options.get("stop_at_first", True)
         hits: list[tuple[str, str]] = []
         reasons: list[str] = []
         first: int | None = None
@@ -335,16 +338,7 @@ class CollisionWorld:
         q_from: ArrayLike,
         q_to: ArrayLike,
         steps: int = 10,
-        *,
-        margin: float | None = None,
-        table_margin: float | None = None,
-        self_margin: float | None = None,
-        ignore_hand_object: bool = False,
-        check_table: bool = True,
-        check_object: bool = True,
-        check_self: bool = True,
-        distances: bool = True,
-        stop_at_first: bool = True,
+        **options: Unpack[PathOptions],
     ) -> CollisionReport:
         """Check ``steps + 1`` configurations interpolated linearly in joint space from ``q_from`` to ``q_to``
         (both ends included). The options are those of :meth:`check_waypoints`."""
@@ -353,15 +347,4 @@ class CollisionWorld:
         if steps < 1:
             raise InvalidInput("steps must be >= 1", field="steps", value=steps)
         s = np.linspace(0.0, 1.0, steps + 1)[:, None]
-        return self.check_waypoints(
-            a + s * (b - a),
-            margin=margin,
-            table_margin=table_margin,
-            self_margin=self_margin,
-            ignore_hand_object=ignore_hand_object,
-            check_table=check_table,
-            check_object=check_object,
-            check_self=check_self,
-            distances=distances,
-            stop_at_first=stop_at_first,
-        )
+        return self.check_waypoints(a + s * (b - a), **options)
