@@ -8,10 +8,10 @@ looked up as absent and removed by :func:`purge_expired_keys`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from datetime import timedelta
+from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import delete, select
+from sqlalchemy import delete
 from sqlalchemy.exc import IntegrityError
 
 from softsig_service.registry.db import Registry
@@ -19,6 +19,11 @@ from softsig_service.registry.models import IdempotencyRow, utcnow
 
 DEFAULT_TTL = 24 * 3600.0
 """How long [s] a key's first response is replayed."""
+
+
+def _cutoff(ttl: float) -> datetime:
+    """Records created before this time (UTC) have expired."""
+    return utcnow() - timedelta(seconds=ttl)
 
 
 @dataclass(frozen=True)
@@ -35,7 +40,7 @@ def find_key(reg: Registry, scope: str, *, ttl: float = DEFAULT_TTL) -> StoredRe
     """The record of ``scope``, or None if there is none or it expired."""
     with reg.read() as s:
         row = s.get(IdempotencyRow, scope)
-        if row is None or row.created_at < utcnow() - timedelta(seconds=ttl):
+        if row is None or row.created_at < _cutoff(ttl):
             return None
         return StoredResponse(row.request_hash, row.status, dict(row.headers), row.body)
 
@@ -46,7 +51,7 @@ def claim_key(reg: Registry, scope: str, *, ttl: float = DEFAULT_TTL) -> bool:
         with reg.write() as s:
             row = s.get(IdempotencyRow, scope)
             if row is not None:
-                if row.created_at >= utcnow() - timedelta(seconds=ttl):
+                if row.created_at >= _cutoff(ttl):
                     return False
                 s.delete(row)
                 s.flush()
@@ -76,9 +81,5 @@ def release_key(reg: Registry, scope: str) -> None:
 def purge_expired_keys(reg: Registry, *, ttl: float = DEFAULT_TTL) -> int:
     """Remove the records older than ``ttl`` [s]; how many were removed."""
     with reg.write() as s:
-        old = list(
-            s.scalars(select(IdempotencyRow.scope).where(IdempotencyRow.created_at < utcnow() - timedelta(seconds=ttl)))
-        )
-        if old:
-            s.execute(delete(IdempotencyRow).where(IdempotencyRow.scope.in_(old)))
-        return len(old)
+        result = s.execute(delete(IdempotencyRow).where(IdempotencyRow.created_at < _cutoff(ttl)))
+        return int(getattr(result, "rowcount", 0) or 0)

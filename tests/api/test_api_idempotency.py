@@ -9,7 +9,13 @@ from fastapi.testclient import TestClient
 
 from softsig_service.api.app import create_app
 from softsig_service.registry.db import Registry
-from softsig_service.registry.idempotency import claim_key, complete_key, find_key, release_key
+from softsig_service.registry.idempotency import (
+    claim_key,
+    complete_key,
+    find_key,
+    purge_expired_keys,
+    release_key,
+)
 
 BOX = {"kind": "builtin", "name": "box", "pose": {"x": 0.5, "y": 0.05, "yaw": 0.4}}
 PLAN = {"hand": "sdm_hand", "object": BOX, "strategy": "S"}
@@ -87,5 +93,8 @@ def test_a_key_in_progress_is_held_once(tmp_path: Path) -> None:
         assert claim_key(reg, "s", ttl=0.0) is True, "an expired record can be claimed again"
         release_key(reg, "s")
         assert find_key(reg, "s") is None
+        claim_key(reg, "t")
+        assert purge_expired_keys(reg) == 0, "a fresh record is kept"
+        assert purge_expired_keys(reg, ttl=0.0) == 1 and find_key(reg, "t") is None
     finally:
         reg.dispose()
