@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 from typing import Any
 
+from starlette.datastructures import Headers
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import Receive, Scope, Send
 
@@ -49,8 +50,8 @@ class AuthGateMiddleware:
         write = scope.get("method", "GET") in _WRITES
         if not write and not self.read_auth:
             return None
-        given = next((v for k, v in scope.get("headers", ()) if k == b"x-api-key"), None)
-        if given is not None and key_is_valid(given.decode("latin-1"), self.keys):
+        given = Headers(scope=scope).get("x-api-key")
+        if given is not None and key_is_valid(given, self.keys):
             return None
         if write and not self.keys:
             return "writes are disabled: the service has no API key configured (SOFTSIG_API_KEYS)"

@@ -17,12 +17,13 @@ import re
 from typing import Any
 
 from starlette.concurrency import run_in_threadpool
+from starlette.datastructures import Headers
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from softsig_service.api.problems import problem_body, problem_response
 from softsig_service.registry.idempotency import claim_key, complete_key, find_key, release_key
 
-HEADER = b"idempotency-key"
+HEADER = "idempotency-key"
 KEY_PATTERN = re.compile(r"^[\x21-\x7e]{1,255}$")
 CREATING_PATHS: tuple[str, ...] = (
     r"/v1/hands",
@@ -36,13 +37,6 @@ CREATING_PATHS: tuple[str, ...] = (
 KEPT_HEADERS = (b"content-type", b"location", b"etag")
 
 
-def _header(scope: Scope, name: bytes) -> str | None:
-    for key, value in scope.get("headers", ()):
-        if key == name:
-            return bytes(value).decode("latin-1")
-    return None
-
-
 class IdempotencyMiddleware:
     """Pure ASGI middleware implementing ``Idempotency-Key`` (module docstring) on :data:`CREATING_PATHS`."""
 
@@ -51,7 +45,8 @@ class IdempotencyMiddleware:
         self.paths = re.compile("|".join(f"(?:{p})" for p in CREATING_PATHS))
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        key = _header(scope, HEADER) if scope["type"] == "http" and scope.get("method") == "POST" else None
+        headers = Headers(scope=scope) if scope["type"] == "http" and scope.get("method") == "POST" else Headers()
+        key = headers.get(HEADER)
         ctx = getattr(scope["app"].state, "ctx", None) if key is not None else None
         if key is None or ctx is None or not self.paths.fullmatch(scope.get("path", "")):
             await self.app(scope, receive, send)
@@ -62,7 +57,7 @@ class IdempotencyMiddleware:
                                 "characters", instance=path, field="Idempotency-Key")  # fmt: skip
             await problem_response(400, body)(scope, receive, send)
             return
-        caller = hashlib.sha256((_header(scope, b"x-api-key") or "").encode()).hexdigest()
+        caller = hashlib.sha256(headers.get("x-api-key", "").encode()).hexdigest()
         scope_id = hashlib.sha256(f"{caller}\n{path}\n{key}".encode()).hexdigest()
         registry = ctx.registry
         stored = await run_in_threadpool(find_key, registry, scope_id)
@@ -79,9 +74,9 @@ class IdempotencyMiddleware:
                                     field="Idempotency-Key")  # fmt: skip
                 await problem_response(422, body)(scope, receive, send)
                 return
-            headers = [(k.encode("latin-1"), v.encode("latin-1")) for k, v in stored.headers.items()]
-            headers.append((b"idempotent-replayed", b"true"))
-            await send({"type": "http.response.start", "status": stored.status, "headers": headers})
+            replayed = [(k.encode("latin-1"), v.encode("latin-1")) for k, v in stored.headers.items()]
+            replayed.append((b"idempotent-replayed", b"true"))
+            await send({"type": "http.response.start", "status": stored.status, "headers": replayed})
             await send({"type": "http.response.body", "body": stored.body.encode("utf-8")})
             return
         if stored is not None or not await run_in_threadpool(claim_key, registry, scope_id):
