@@ -73,7 +73,6 @@ def write_json(path: Path, data: Any) -> None:
 
 def parse_floats(text: str, n: int, field: str) -> tuple[float, ...]:
     """``n`` comma-separated numbers from ``text``; :class:`InvalidInput` naming ``field`` otherwise."""
-    from softsig_service.errors import InvalidInput
 
     try:
         values = tuple(float(v) for v in text.split(","))
