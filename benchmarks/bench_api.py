@@ -1,6 +1,7 @@
 """Plan requests over HTTP against a ``softsig serve`` subprocess on loopback: throughput and latency percentiles.
 
 Run: .venv/bin/python benchmarks/bench_api.py [--requests 400] [--concurrency 8] [--seconds 60] [--strategy C]
+     [--workers N]   (service processes, default: every CPU)
 
 The server runs on a free loopback port with a fresh data folder (SQLite registry inside). Each client thread
 keeps one HTTP/1.1 connection (httpx) and posts ``POST /v1/plans`` for the built-in box at random poses
@@ -41,10 +42,11 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def start_server(data: Path) -> tuple[subprocess.Popen[bytes], str]:
+def start_server(data: Path, workers: int) -> tuple[subprocess.Popen[bytes], str]:
     port = free_port()
     env = {**os.environ, "SOFTSIG_DATA_DIR": str(data), "SOFTSIG_API_KEYS": KEY, "SOFTSIG_LOG_LEVEL": "warning"}
-    cmd = [sys.executable, "-m", "softsig_service.cli", "serve", "--host", "127.0.0.1", "--port", str(port)]
+    cmd = [sys.executable, "-m", "softsig_service.cli", "serve", "--host", "127.0.0.1", "--port", str(port),
+           "--workers", str(workers)]  # fmt: skip
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + 60
@@ -74,9 +76,20 @@ def metric_sum_count(text: str, name: str, label: str = "") -> tuple[float, floa
 
 
 def process_cpu_seconds(pid: int) -> float:
-    """User + system CPU time [s] of process ``pid`` and its waited-for children (Linux ``/proc/<pid>/stat``)."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return sum(int(v) for v in fields[11:15]) / os.sysconf("SC_CLK_TCK")
+    """User + system CPU time [s] of process ``pid`` and every living process below it (the service's worker
+    processes), with their waited-for children (Linux ``/proc/<pid>/stat``)."""
+    stats: dict[int, list[str]] = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                stats[int(entry)] = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+    tree, frontier = {pid}, {pid}
+    while frontier:
+        frontier = {p for p, f in stats.items() if int(f[1]) in frontier and p not in tree}
+        tree |= frontier
+    return sum(int(v) for p in tree if p in stats for v in stats[p][11:15]) / os.sysconf("SC_CLK_TCK")
 
 
 def run(
@@ -168,9 +181,10 @@ def main() -> None:
     parser.add_argument("--concurrency", type=int, default=8)
     parser.add_argument("--seconds", type=float, default=60.0, help="time cap per run [s]")
     parser.add_argument("--strategy", choices=("S", "C"), default="C")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="softsig serve --workers")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp:
-        proc, url = start_server(Path(tmp))
+        proc, url = start_server(Path(tmp), args.workers)
         try:
             pid = proc.pid
             run(url, n=30, concurrency=2, seconds=30, strategy=args.strategy, store=True, server_pid=pid)  # warm-up
@@ -188,7 +202,8 @@ def main() -> None:
                 proc.wait(timeout=20)
             except subprocess.TimeoutExpired:
                 proc.kill()
-    print(f"POST /v1/plans, strategy {args.strategy}, pisa_iit_softhand, box at random poses; {os.cpu_count()} CPUs")
+    print(f"POST /v1/plans, strategy {args.strategy}, pisa_iit_softhand, box at random poses; {os.cpu_count()} CPUs, "
+          f"{args.workers} service processes")  # fmt: skip
     print(f"{'conc':>4} {'store':>5} {'n':>5} {'fail':>4} {'req/s':>7} {'p50 ms':>7} {'p90 ms':>7} {'p99 ms':>7} "
           f"{'planner ms':>10} {'server ms':>9} {'client CPU':>10} {'server CPU':>10}")  # fmt: skip
     for r in rows:
@@ -198,8 +213,9 @@ def main() -> None:
         if r["first_failure"]:
             print(f"     first failure: {r['first_failure']}")
     print("planner ms: mean planner time per plan (server metric softsig_plan_seconds); server ms: mean time the")
-    print("request spent in the server's HTTP stack (softsig_http_request_duration_seconds, route /v1/plans).")
-    print("client CPU / server CPU: CPU time of the client process / of the server process over the run's wall")
+    print("request spent in the server's HTTP stack (softsig_http_request_duration_seconds, route /v1/plans); with")
+    print("several service processes both come from the process that answered the /metrics scrapes.")
+    print("client CPU / server CPU: CPU time of the client process / of every server process over the run's wall")
     print("time, in cores (on a 2-core machine the client's share is taken from the server).")
 
 

@@ -87,6 +87,17 @@ class Settings(BaseSettings):
     max_job_seconds: float = Field(3600.0, gt=0.0, description="wall-time cap of one job [s]")
     job_workers: int = Field(1, ge=1, le=64, description="jobs running at the same time (each in its own process)")
     max_queued_jobs: int = Field(32, ge=1, description="jobs waiting or running before submissions get 503")
+    job_lease: float = Field(
+        30.0, ge=0.5, description="[s] lease a process holds on a running job, renewed every third of it; a job "
+        "whose process died is claimed again by another process once its lease has expired",
+    )  # fmt: skip
+    job_poll_interval: float = Field(
+        1.0, gt=0.0, le=60.0, description="[s] how often a process looks for jobs queued by the service's other "
+        "processes or left by a dead one",
+    )  # fmt: skip
+    job_max_attempts: int = Field(
+        3, ge=1, description="claims of a job whose process died each time before the job is failed (interrupted)"
+    )
     compute_workers: int = Field(
         1, ge=1, le=64, description="worker processes for synchronous CPU work (signatures, hand checks, images)"
     )

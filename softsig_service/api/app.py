@@ -3,8 +3,8 @@
 At startup the lifespan opens the registry (creating its tables), registers the built-in hands found in
 ``settings.hands_dir`` that are not registered yet, builds the planner once for the app (UR5 model, collision
 worlds; with ``warm_planner`` also the planning models of the built-in hands), starts the compute pool and the job
-manager, and marks jobs left unfinished by a previous run as failed. At shutdown it kills running jobs and stops the
-worker processes.
+manager, which claims queued jobs and those a dead process left (:mod:`softsig_service.services.jobs`). At
+shutdown it kills its running jobs, hands them back to the queue and stops the worker processes.
 
 Routes live under ``/v1`` (``routes/``); ``/healthz``, ``/readyz`` and ``/metrics`` at the root. Middleware, from
 the outside in: request id + access log + metrics (``api/logging.py``), the API key and the body read timeout
@@ -76,6 +76,16 @@ def _startup(settings: Settings, registry: Registry) -> Any:
             if record.builtin:
                 planning_model(record.manifest_path)
     return planner
+
+
+def prepare_registry(settings: Settings) -> None:
+    """Create or upgrade the registry and register the built-in hands, once, before several service processes
+    start on it (each would otherwise do it at its start)."""
+    registry = Registry(settings.resolved_database_url(), busy_timeout=settings.db_busy_timeout)
+    try:
+        register_builtin_hands(registry, settings)
+    finally:
+        registry.dispose()
 
 
 def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobKind] | None = None) -> FastAPI:
@@ -160,6 +170,20 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
     templates = [route for router in routers for route in router.routes]
     app.add_middleware(RequestContextMiddleware, metrics=metrics, routes=templates)
     return app
+
+
+def service_app() -> FastAPI:
+    """The app of one process of ``softsig serve --workers N``: settings from the environment, logging set up
+    (uvicorn's factory; each worker process calls it). The process dies with uvicorn's supervisor, so that a
+    ``kill -9`` of ``softsig serve`` leaves no worker serving or running jobs (their own children follow them)."""
+    from softsig_service.api.logging import configure_logging
+    from softsig_service.services.lifeline import follow_parent
+
+    follow_parent()
+
+    settings = Settings()
+    configure_logging(settings.log_level)
+    return create_app(settings)
 
 
 def openapi_json(app: FastAPI | None = None) -> str:

@@ -27,6 +27,7 @@ def job_out(rec: repo.JobRecord) -> dict[str, Any]:
         "error": rec.error,
         "time_limit": rec.time_limit,
         "cancel_requested": rec.cancel_requested,
+        "attempts": rec.attempts,
         "created_at": rec.created_at,
         "started_at": rec.started_at,
         "finished_at": rec.finished_at,

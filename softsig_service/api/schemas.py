@@ -340,6 +340,10 @@ class JobOut(Out):
     error: dict[str, Any] | None = None
     time_limit: float = Field(description="wall-time cap [s]")
     cancel_requested: bool = False
+    attempts: int = Field(
+        0, description="how many times a service process has started the job (more than 1: its process died or "
+        "the service stopped, and another process resumed it)",
+    )  # fmt: skip
     created_at: datetime
     started_at: datetime | None = None
     finished_at: datetime | None = None

@@ -109,12 +109,27 @@ def serve(
     db: Annotated[
         Path | None, typer.Option("--db", help="SQLite file of the registry (default in SOFTSIG_DATA_DIR)")
     ] = None,
+    workers: Annotated[
+        int | None,
+        typer.Option(
+            "--workers",
+            min=1,
+            max=64,
+            help="service processes sharing the port and the registry (default: every CPU this process may use)",
+        ),
+    ] = None,
 ) -> None:
-    """Run the REST service (uvicorn): hand and signature registry, plans, validation jobs; docs at /docs."""
+    """Run the REST service (uvicorn): hand and signature registry, plans, validation jobs; docs at /docs.
+
+    With several workers, each process serves requests and claims jobs from the shared registry; a process that
+    dies leaves its jobs to the others once their lease expires (``SOFTSIG_JOB_LEASE``)."""
+    import os
+
     import uvicorn
 
-    from softsig_service.api.app import create_app
+    from softsig_service.api.app import create_app, prepare_registry
     from softsig_service.api.logging import configure_logging
+    from softsig_service.experiments.campaign import default_workers
 
     with _errors():
         overrides: dict[str, Any] = {}
@@ -126,10 +141,19 @@ def serve(
             overrides["database_url"] = f"sqlite:///{db.expanduser().resolve()}"
         settings = Settings(**overrides)
         configure_logging(settings.log_level)
-        uvicorn.run(
-            create_app(settings), host=settings.host, port=settings.port, log_config=None, access_log=False,
-            timeout_graceful_shutdown=10,
-        )  # fmt: skip
+        n = default_workers() if workers is None else workers
+        common: dict[str, Any] = {
+            "host": settings.host, "port": settings.port, "log_config": None, "access_log": False,
+            "timeout_graceful_shutdown": 10,
+        }  # fmt: skip
+        if n == 1:
+            uvicorn.run(create_app(settings), **common)
+            return
+        # the worker processes build their settings from the environment: pass the options on that way
+        for key, value in overrides.items():
+            os.environ[f"SOFTSIG_{key.upper()}"] = str(value)
+        prepare_registry(settings)  # migrate and register the built-in hands once, before the workers start
+        uvicorn.run("softsig_service.api.app:service_app", factory=True, workers=n, **common)
 
 
 @app.command("openapi")

@@ -6,7 +6,10 @@ from softsig_service.planning.hand_model import (
     PLACEMENTS,
     HandPlanningModel,
     Placement,
+    build_planning_model,
+    cached_planning_model,
     planning_model,
+    remember_planning_model,
 )
 from softsig_service.planning.planner import GraspPlan, Planner, PlanRequest
 from softsig_service.planning.strategies import axis_angle_between_lines, strategy_s_poses
@@ -30,8 +33,11 @@ __all__ = [
     "Planner",
     "WristPoseSolution",
     "axis_angle_between_lines",
+    "build_planning_model",
+    "cached_planning_model",
     "hand_rotation",
     "planning_model",
+    "remember_planning_model",
     "solve_wrist_pose",
     "solve_wrist_pose_unchecked",
     "strategy_s_poses",

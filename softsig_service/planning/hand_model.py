@@ -6,7 +6,8 @@ Frames and units: the hand frame (= the UR5 flange ``tool0``); lengths in [m].
 
 from __future__ import annotations
 
-import functools
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -56,11 +57,60 @@ class HandPlanningModel:
         return self.signature.anchor if strategy == "C" else self.bbox_center
 
 
-@functools.lru_cache(maxsize=32)
+CACHE_SIZE = 32
+"""Planning models kept per process (least recently used first out)."""
+
+_CacheKey = tuple[str, str, "Settings | None", str]
+_cache: OrderedDict[_CacheKey, HandPlanningModel] = OrderedDict()
+_cache_lock = threading.Lock()
+
+
+def cached_planning_model(
+    hand_ref: str, method: str = "ellipsoid", settings: Settings | None = None, criterion: Criterion = "absolute"
+) -> HandPlanningModel | None:
+    """The planning model of ``hand_ref`` if this process has built or been given it, else None (nothing is
+    simulated)."""
+    key = (hand_ref, method, settings, criterion)
+    with _cache_lock:
+        model = _cache.get(key)
+        if model is not None:
+            _cache.move_to_end(key)
+        return model
+
+
+def remember_planning_model(
+    model: HandPlanningModel,
+    hand_ref: str,
+    method: str = "ellipsoid",
+    settings: Settings | None = None,
+    criterion: Criterion = "absolute",
+) -> None:
+    """Keep ``model`` (built elsewhere, e.g. in a worker process by :func:`build_planning_model`) for
+    :func:`planning_model` with the same arguments."""
+    with _cache_lock:
+        _cache[(hand_ref, method, settings, criterion)] = model
+        _cache.move_to_end((hand_ref, method, settings, criterion))
+        while len(_cache) > CACHE_SIZE:
+            _cache.popitem(last=False)
+
+
 def planning_model(
     hand_ref: str, method: str = "ellipsoid", settings: Settings | None = None, criterion: Criterion = "absolute"
 ) -> HandPlanningModel:
-    """Simulate the hand's closure once and derive its planning data (cached per hand, CS method and criterion)."""
+    """The hand's planning model: cached per hand, CS method and criterion, else built now
+    (:func:`build_planning_model`, which simulates the hand's closure) and kept."""
+    model = cached_planning_model(hand_ref, method, settings, criterion)
+    if model is None:
+        model = build_planning_model(hand_ref, method, settings, criterion)
+        remember_planning_model(model, hand_ref, method, settings, criterion)
+    return model
+
+
+def build_planning_model(
+    hand_ref: str, method: str = "ellipsoid", settings: Settings | None = None, criterion: Criterion = "absolute"
+) -> HandPlanningModel:
+    """Simulate the hand's closure once and derive its planning data (no cache; the service runs this in its
+    compute pool, with its time limit, and hands the result to :func:`remember_planning_model`)."""
     hand = load_hand(hand_ref, settings)
     traj = simulate_closure(hand, surface_points=800 if method == "mesh" else 0)
     cs = compute_closure_signature(traj, method, criterion=criterion)  # type: ignore[arg-type]

@@ -24,12 +24,15 @@ from softsig_service.registry.idempotency import (
     release_key,
 )
 from softsig_service.registry.jobs import (
+    Claim,
     JobRecord,
     add_job,
+    claim_job,
     get_job,
-    interrupt_unfinished_jobs,
     list_jobs,
     purge_jobs,
+    release_jobs,
+    renew_lease,
     request_cancel,
     update_job,
 )
@@ -55,6 +58,7 @@ from softsig_service.registry.signatures import (
 
 __all__ = [
     "Base",
+    "Claim",
     "HandRecord",
     "HandRow",
     "IdempotencyRow",
@@ -73,6 +77,7 @@ __all__ = [
     "add_plan",
     "add_signature",
     "alembic_config",
+    "claim_job",
     "claim_key",
     "complete_key",
     "current_revision",
@@ -88,7 +93,6 @@ __all__ = [
     "hand_row",
     "head_revision",
     "incarnation",
-    "interrupt_unfinished_jobs",
     "latest_signature",
     "list_hands",
     "list_jobs",
@@ -98,7 +102,9 @@ __all__ = [
     "purge_expired_keys",
     "purge_jobs",
     "purge_plans",
+    "release_jobs",
     "release_key",
+    "renew_lease",
     "replace_hand",
     "request_cancel",
     "sync_builtin_hand",

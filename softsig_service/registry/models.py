@@ -131,6 +131,14 @@ class JobRow(Base):
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, nullable=False, default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(UTCDateTime, nullable=True)
     finished_at: Mapped[datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    private: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
+    """Parameters for the worker only (server paths); never shown to clients."""
+    owner: Mapped[str | None] = mapped_column(String(100), nullable=True)
+    """The service process holding the job's lease (``host:pid:nonce``), None while queued."""
+    lease_expires_at: Mapped[datetime | None] = mapped_column(UTCDateTime, nullable=True)
+    """When the owner's lease ends unless its heartbeat renews it; then another process may claim the job."""
+    attempts: Mapped[int] = mapped_column(Integer, nullable=False, default=0, server_default="0")
+    """How many times a process has claimed the job."""
 
 
 class IdempotencyRow(Base):

@@ -4,11 +4,18 @@
 ``fn(params: dict, ctx: JobContext) -> dict``, run in a process of its own (its own process group, so the worker
 processes it starts are stopped with it). The callable reports progress with ``ctx.progress(fraction, message)``
 and writes result files (JSON, CSV, Markdown, PNG...) into ``ctx.out_dir``; its returned dict is the job's
-result. At most ``job_workers`` jobs run at once, the others wait as ``queued``; at most ``max_queued_jobs`` are
-unfinished (else :class:`ServiceBusy`). Each job has a wall-time cap (``min(requested, max_job_seconds)`` [s]):
-past it the process group is killed and the job is ``timed_out``. ``DELETE /v1/jobs/{id}`` kills it too
-(``cancelled``). State, progress and results live in the registry (``jobs`` table); jobs that were unfinished
-when the service stopped are marked ``failed`` (``interrupted``) at the next start.
+result. At most ``max_queued_jobs`` are unfinished (else :class:`ServiceBusy`).
+
+**Several processes, one registry.** A submitted job is only queued in the registry (``jobs`` table); every
+process of the service runs a :class:`JobManager` that claims queued jobs while it has a free slot (at most
+``job_workers`` at once), with a lease that its heartbeat renews (:mod:`softsig_service.registry.jobs`). A
+process that dies (``kill -9``, a crash) takes its job processes with it (they follow their parent) and leaves
+its jobs to whichever process claims them once their lease (``job_lease`` [s]) has expired; the job runs again
+from the start in its folder (an experiment resumes from the trials it already stored). Only the process holding
+a job's lease writes its progress and result. A graceful shutdown hands its running jobs back to the queue.
+
+Each run of a job has a wall-time cap (``min(requested, max_job_seconds)`` [s]): past it the process group is
+killed and the job is ``timed_out``. ``POST /v1/jobs/{id}/cancel`` kills it too (``cancelled``).
 """
 
 from __future__ import annotations
@@ -22,8 +29,10 @@ import math
 import multiprocessing
 import os
 import signal
+import socket
 import time
 import traceback
+import uuid
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
@@ -153,29 +162,40 @@ def _kill_group(proc: BaseProcess) -> None:
 
 
 class JobManager:
-    """Runs jobs in worker processes; state in the registry (see the module docstring)."""
+    """Claims jobs from the registry and runs each in a worker process (see the module docstring)."""
 
     def __init__(
-        self, registry: Registry, settings: Settings, kinds: Mapping[str, JobKind], jobs_dir: Path, metrics: Metrics
+        self,
+        registry: Registry,
+        settings: Settings,
+        kinds: Mapping[str, JobKind],
+        jobs_dir: Path,
+        metrics: Metrics,
+        *,
+        owner: str | None = None,
     ) -> None:
         self.registry = registry
         self.settings = settings
         self.kinds = dict(kinds)
         self.jobs_dir = jobs_dir
         self.metrics = metrics
-        self._slots = asyncio.Semaphore(settings.job_workers)
+        self.owner = owner or f"{socket.gethostname()[:60]}:{os.getpid()}:{uuid.uuid4().hex[:8]}"
+        """This process's name on the leases it holds (``host:pid:nonce``)."""
         self._tasks: dict[str, asyncio.Task[None]] = {}
         self._cancel: dict[str, asyncio.Event] = {}
         self._procs: dict[str, BaseProcess] = {}
+        self._wake = asyncio.Event()
+        self._dispatcher: asyncio.Task[None] | None = None
+
+    @property
+    def heartbeat(self) -> float:
+        """[s] between two renewals of a running job's lease (and looks at its cancellation flag)."""
+        return min(self.settings.job_lease / 3.0, self.settings.job_poll_interval)
 
     async def start(self) -> None:
-        """Mark jobs left unfinished by a previous run as failed."""
+        """Start claiming jobs: queued ones, and those whose process died (their lease expired)."""
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
-        n = await run_in_threadpool(
-            repo.interrupt_unfinished_jobs, self.registry, "the service stopped while the job was queued or running"
-        )
-        if n:
-            log.warning("marked %d unfinished jobs of a previous run as failed", n)
+        self._dispatcher = asyncio.create_task(self._dispatch())
 
     def out_dir(self, job_id: str) -> Path:
         """The result folder of a job."""
@@ -189,10 +209,10 @@ class JobManager:
         *,
         private: dict[str, Any] | None = None,
     ) -> repo.JobRecord:
-        """Queue a job of ``kind``; it starts when a slot is free.
+        """Queue a job of ``kind``; a process of the service with a free slot claims and runs it.
 
-        ``params`` are stored with the job (clients see them); ``private`` is added to them for the worker only
-        (server paths and the like).
+        ``params`` are stored with the job (clients see them); ``private`` is stored apart and added to them for
+        the worker only (server paths and the like).
         """
         if kind not in self.kinds:
             raise InvalidInput("unknown job kind", field="kind", value=kind, choices=self.kinds)
@@ -205,32 +225,47 @@ class JobManager:
                 params=to_jsonable(params),
                 time_limit=limit,
                 max_unfinished=self.settings.max_queued_jobs,
+                private=to_jsonable(private) if private else None,
             )
         )
         self.out_dir(record.id).mkdir(parents=True, exist_ok=True)
-        self._cancel[record.id] = asyncio.Event()
-        worker_params = {**params, **(private or {})}
-        self._tasks[record.id] = asyncio.create_task(self._run(record.id, self.kinds[kind], worker_params, limit))
+        self._wake.set()
         return record
 
     async def cancel(self, job_id: str) -> repo.JobRecord:
-        """Cancel a queued or running job (:class:`Conflict` if it has finished)."""
+        """Cancel a queued or running job (:class:`Conflict` if it has finished). A running job is stopped by the
+        process that holds it: at once if that is this one, else at its next heartbeat."""
         record = await run_in_threadpool(repo.request_cancel, self.registry, job_id)
         event = self._cancel.get(job_id)
         if event is not None:
             event.set()
-        else:  # not ours (left over): nothing runs it
-            await self._finish(job_id, record.kind, "cancelled", message="cancelled")
+        elif record.status == "cancelled":
+            self.metrics.jobs_finished.labels(record.kind, "cancelled").inc()
         return record
 
     async def wait(self, job_id: str, timeout: float | None = None) -> None:
-        """Wait for a job started by this manager to finish (tests and shutdown)."""
-        task = self._tasks.get(job_id)
-        if task is not None:
-            await asyncio.wait_for(asyncio.shield(task), timeout)
+        """Wait until a job has finished, whichever process runs it (tests and tools)."""
+
+        async def finished() -> None:
+            while True:
+                task = self._tasks.get(job_id)
+                if task is not None:
+                    with contextlib.suppress(asyncio.CancelledError):
+                        await asyncio.shield(task)
+                rec = await run_in_threadpool(repo.get_job, self.registry, job_id)
+                if rec.finished:
+                    return
+                await asyncio.sleep(0.05)
+
+        await asyncio.wait_for(finished(), timeout)
 
     async def shutdown(self) -> None:
-        """Kill running jobs and mark every unfinished job failed."""
+        """Stop claiming, kill the running jobs' processes and hand their jobs back to the queue (the service's
+        next start, or another of its processes, resumes them)."""
+        if self._dispatcher is not None:
+            self._dispatcher.cancel()
+            with contextlib.suppress(BaseException):
+                await self._dispatcher
         for proc in list(self._procs.values()):
             await run_in_threadpool(_kill_group, proc)
         for task in list(self._tasks.values()):
@@ -238,63 +273,76 @@ class JobManager:
         for task in list(self._tasks.values()):
             with contextlib.suppress(BaseException):
                 await task
-        await run_in_threadpool(repo.interrupt_unfinished_jobs, self.registry, "the service shut down")
+        n = await run_in_threadpool(repo.release_jobs, self.registry, self.owner)
+        if n:
+            log.warning("handed %d running jobs back to the queue at shutdown", n)
+
+    async def _dispatch(self) -> None:
+        """Claim jobs while a slot is free; look again when woken (a submission, a finished job) or every
+        ``job_poll_interval`` (jobs queued by other processes, expired leases)."""
+        while True:
+            self._wake.clear()
+            claim = None
+            if len(self._tasks) < self.settings.job_workers:
+                try:
+                    claim = await run_in_threadpool(
+                        functools.partial(
+                            repo.claim_job, self.registry, self.owner, self.settings.job_lease,
+                            kinds=tuple(self.kinds), max_attempts=self.settings.job_max_attempts,
+                        )
+                    )  # fmt: skip
+                except Exception:  # the database is busy or away: try again later
+                    log.exception("claiming a job failed")
+            if claim is not None:
+                job_id = claim.record.id
+                self._cancel[job_id] = asyncio.Event()
+                self._tasks[job_id] = asyncio.create_task(self._run(claim))
+                continue
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._wake.wait(), self.settings.job_poll_interval)
 
     async def _finish(self, job_id: str, kind: str, status: str, **fields: Any) -> None:
         rec = await run_in_threadpool(
-            lambda: repo.update_job(self.registry, job_id, status=status, finished_at=utcnow(), **fields)
+            lambda: repo.update_job(
+                self.registry, job_id, owner=self.owner, status=status, finished_at=utcnow(), **fields
+            )
         )
         if rec is not None:
             self.metrics.jobs_finished.labels(kind, status).inc()
+        else:
+            log.warning("job %s: not finished as %s, this process no longer holds it", job_id, status)
 
-    async def _run(self, job_id: str, kind: JobKind, params: dict[str, Any], limit: float) -> None:
-        cancel = self._cancel[job_id]
+    async def _run(self, claim: repo.Claim) -> None:
+        rec = claim.record
+        job_id = rec.id
         try:
-            if not await self._acquire_slot(cancel):
-                await self._finish(job_id, kind.name, "cancelled", message="cancelled before it started")
-                return
-            try:
-                if cancel.is_set():
-                    await self._finish(job_id, kind.name, "cancelled", message="cancelled before it started")
-                    return
-                await self._execute(job_id, kind, params, limit, cancel)
-            finally:
-                self._slots.release()
+            kind = self.kinds[rec.kind]
+            if rec.attempts > 1:
+                log.warning("job %s: resumed (attempt %d)", job_id, rec.attempts)
+            params = {**rec.params, **claim.private}
+            await self._execute(job_id, kind, params, rec.time_limit, self._cancel[job_id])
         except Exception as exc:  # a bug in the manager: record it on the job rather than lose it
             log.exception("job %s failed in the manager", job_id)
             with contextlib.suppress(Exception):
-                await self._finish(job_id, kind.name, "failed", error={"type": "internal-error", "detail": str(exc)})
+                await self._finish(job_id, rec.kind, "failed", error={"type": "internal-error", "detail": str(exc)})
         finally:
             self._tasks.pop(job_id, None)
             self._cancel.pop(job_id, None)
-
-    async def _acquire_slot(self, cancel: asyncio.Event) -> bool:
-        """Wait for a free slot (True) or for the job's cancellation while it is queued (False)."""
-        acquire = asyncio.ensure_future(self._slots.acquire())
-        stop = asyncio.ensure_future(cancel.wait())
-        try:
-            await asyncio.wait({acquire, stop}, return_when=asyncio.FIRST_COMPLETED)
-        finally:
-            stop.cancel()
-            if not acquire.done():
-                acquire.cancel()
-        return bool(acquire.done() and not acquire.cancelled())
+            self._wake.set()
 
     async def _execute(
         self, job_id: str, kind: JobKind, params: dict[str, Any], limit: float, cancel: asyncio.Event
     ) -> None:
+        out_dir = self.out_dir(job_id)
+        out_dir.mkdir(parents=True, exist_ok=True)
         recv, send = _MP.Pipe(duplex=False)
-        proc = _MP.Process(
-            target=_job_main, args=(job_id, kind.target, params, str(self.out_dir(job_id)), send), daemon=False
-        )
+        proc = _MP.Process(target=_job_main, args=(job_id, kind.target, params, str(out_dir), send), daemon=False)
         await run_in_threadpool(proc.start)
         send.close()
         self._procs[job_id] = proc
         self.metrics.jobs_running.inc()
-        await run_in_threadpool(
-            lambda: repo.update_job(self.registry, job_id, status="running", started_at=utcnow(), message="started")
-        )
         deadline = time.monotonic() + limit
+        next_beat = time.monotonic() + self.heartbeat
         outcome: tuple[Any, ...] | None = None
         last_write = 0.0
         pending: tuple[float, str] | None = None
@@ -317,8 +365,21 @@ class JobManager:
                     frac, text = pending
                     pending, last_write = None, now
                     await run_in_threadpool(
-                        functools.partial(repo.update_job, self.registry, job_id, progress=frac, message=text)
+                        functools.partial(
+                            repo.update_job, self.registry, job_id, owner=self.owner, progress=frac, message=text
+                        )
                     )
+                if now >= next_beat:
+                    next_beat = now + self.heartbeat
+                    held = await run_in_threadpool(
+                        repo.renew_lease, self.registry, job_id, self.owner, self.settings.job_lease
+                    )
+                    if held is None:  # another process holds it now, or it was finished: stop, write nothing
+                        log.warning("job %s: lease lost; stopping this process's run of it", job_id)
+                        await run_in_threadpool(_kill_group, proc)
+                        return
+                    if held.cancel_requested:
+                        cancel.set()
                 if cancel.is_set():
                     await run_in_threadpool(_kill_group, proc)
                     await self._finish(job_id, kind.name, "cancelled", message="cancelled")
@@ -348,6 +409,12 @@ class JobManager:
         if outcome[0] == "result":
             result = dict(outcome[1])
             if kind.on_result is not None:
+                held = await run_in_threadpool(
+                    repo.renew_lease, self.registry, job_id, self.owner, self.settings.job_lease
+                )
+                if held is None:  # only the holder of the lease may store what the job produced
+                    log.warning("job %s: lease lost before its result was stored; dropping this run's result", job_id)
+                    return
                 try:
                     hook = kind.on_result
                     result = await run_in_threadpool(lambda: hook(self.registry, params, result))

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import io
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from softsig_service.signatures.closure_types import Criterion
 
 
 def render_plan_png(plan: dict[str, Any], manifest_path: str | None) -> bytes:
@@ -58,7 +61,7 @@ def render_plan_png(plan: dict[str, Any], manifest_path: str | None) -> bytes:
 
             solver = plan.get("solver") or {}
             method = str(solver.get("cs_method", "ellipsoid"))
-            criterion = "relative" if solver.get("cs_criterion") == "relative" else "absolute"
+            criterion: Criterion = "relative" if solver.get("cs_criterion") == "relative" else "absolute"
             model = planning_model(manifest_path, method, None, criterion)
             pts = model.points_open @ Rg.T + p
             if len(pts) >= 3:

@@ -86,7 +86,7 @@ def test_a_job_may_start_worker_processes(api: TestClient) -> None:
     assert job["result"] == {"values": [1, 2, 3]}
 
 
-def test_queue_cap_and_restart_marks_unfinished_jobs(tmp_path: Path, database_url: str) -> None:
+def test_queue_cap_and_a_restart_resumes_unfinished_jobs(tmp_path: Path, database_url: str) -> None:
     settings = make_settings(tmp_path, max_queued_jobs=2, job_workers=1, database_url=database_url)
     with TestClient(create_app(settings, job_kinds=TEST_JOB_KINDS)) as client:
         first = submit(client, "sleep_forever", {})
@@ -102,10 +102,13 @@ def test_queue_cap_and_restart_marks_unfinished_jobs(tmp_path: Path, database_ur
         r = client.post(f"/v1/jobs/{second}/cancel", headers=AUTH)
         assert r.status_code == 202
         assert wait_for(lambda: finished(client, second))["status"] == "cancelled"
-    # the service stopped with the first job running: the next start marks it failed
+        assert client.get(f"/v1/jobs/{first}").json()["attempts"] == 1
+    # the service stopped with the first job running: it handed the job back, and the next start resumes it
     with TestClient(create_app(settings, job_kinds=TEST_JOB_KINDS)) as client:
-        job = client.get(f"/v1/jobs/{first}").json()
-        assert job["status"] == "failed" and job["error"]["type"] == "interrupted"
+        job = wait_for(lambda: (j := client.get(f"/v1/jobs/{first}").json())["status"] == "running" and j)
+        assert job["attempts"] == 2 and job["message"].startswith("resumed")
+        assert client.post(f"/v1/jobs/{first}/cancel", headers=AUTH).status_code == 202
+        assert wait_for(lambda: finished(client, first))["status"] == "cancelled"
 
 
 def test_unknown_jobs(api: TestClient) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import re
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -181,9 +182,82 @@ def test_jobs(reg: Registry) -> None:
     assert repo.update_job(reg, j.id, progress=0.7) is None, "a finished job stays finished"
     with pytest.raises(Conflict):
         repo.request_cancel(reg, j.id)
-    assert repo.interrupt_unfinished_jobs(reg, "restart") == 1
-    items, total = repo.list_jobs(reg, status="failed")
-    assert total == 1 and items[0].error is not None and items[0].error["detail"] == "restart"
+
+
+KINDS = ("validation",)
+
+
+def test_a_job_is_claimed_by_one_process_and_only_its_holder_writes(reg: Registry) -> None:
+    j = repo.add_job(reg, kind="validation", params={"n": 1}, time_limit=10.0, max_unfinished=9, private={"p": 2})
+    assert repo.claim_job(reg, "a", 30.0, kinds=("experiment",), max_attempts=3) is None, "only the kinds asked"
+    claim = repo.claim_job(reg, "a", 30.0, kinds=KINDS, max_attempts=3)
+    assert claim is not None and claim.record.id == j.id and claim.private == {"p": 2}
+    assert claim.record.status == "running" and claim.record.owner == "a" and claim.record.attempts == 1
+    assert "p" not in repo.get_job(reg, j.id).params, "private parameters stay apart"
+    assert repo.claim_job(reg, "b", 30.0, kinds=KINDS, max_attempts=3) is None, "a held job is not claimed twice"
+    assert repo.update_job(reg, j.id, owner="b", progress=0.9) is None, "only the holder reports progress"
+    assert repo.renew_lease(reg, j.id, "b", 30.0) is None
+    renewed = repo.renew_lease(reg, j.id, "a", 30.0)
+    assert renewed is not None and renewed.lease_expires_at is not None
+    assert repo.update_job(reg, j.id, owner="b", status="succeeded") is None
+    done = repo.update_job(reg, j.id, owner="a", status="succeeded", result={"ok": 1})
+    assert done is not None and done.finished and done.lease_expires_at is None
+    assert repo.renew_lease(reg, j.id, "a", 30.0) is None, "a finished job has no lease"
+
+
+def test_an_expired_lease_is_claimed_again_until_the_attempts_run_out(reg: Registry) -> None:
+    j = repo.add_job(reg, kind="validation", params={}, time_limit=10.0, max_unfinished=9)
+    first = repo.claim_job(reg, "a", 0.05, kinds=KINDS, max_attempts=2)
+    assert first is not None
+    time.sleep(0.1)  # "a" died: its heartbeat stopped
+    second = repo.claim_job(reg, "b", 0.05, kinds=KINDS, max_attempts=2)
+    assert second is not None and second.record.id == j.id and second.record.attempts == 2
+    assert second.record.owner == "b" and second.record.message.startswith("resumed")
+    assert repo.update_job(reg, j.id, owner="a", status="succeeded") is None, "the dead holder's write is refused"
+    time.sleep(0.1)
+    assert repo.claim_job(reg, "c", 30.0, kinds=KINDS, max_attempts=2) is None
+    failed = repo.get_job(reg, j.id)
+    assert failed.status == "failed" and failed.error is not None and failed.error["type"] == "interrupted"
+
+
+def test_release_and_cancel(reg: Registry) -> None:
+    held = repo.add_job(reg, kind="validation", params={}, time_limit=10.0, max_unfinished=9)
+    queued = repo.add_job(reg, kind="validation", params={}, time_limit=10.0, max_unfinished=9)
+    assert repo.claim_job(reg, "a", 30.0, kinds=KINDS, max_attempts=3) is not None
+    cancelled = repo.request_cancel(reg, queued.id)
+    assert cancelled.status == "cancelled" and cancelled.finished, "a queued job nobody holds ends at once"
+    running = repo.request_cancel(reg, held.id)
+    assert running.status == "running" and running.cancel_requested, "the holder stops a running one"
+    assert repo.release_jobs(reg, "a") == 1
+    again = repo.get_job(reg, held.id)
+    assert again.status == "queued" and again.owner is None
+    # a released job whose cancellation was requested is cancelled by the next claim instead of run
+    assert repo.claim_job(reg, "b", 30.0, kinds=KINDS, max_attempts=3) is None
+    assert repo.get_job(reg, held.id).status == "cancelled"
+
+
+def test_concurrent_claims_give_each_job_to_one_process(reg: Registry, database_url: str) -> None:
+    ids = {repo.add_job(reg, kind="validation", params={}, time_limit=9.0, max_unfinished=99).id for _ in range(12)}
+    got: dict[str, list[str]] = {}
+    errors: list[BaseException] = []
+
+    def worker(name: str) -> None:
+        own = Registry(database_url)
+        try:
+            while (claim := repo.claim_job(own, name, 30.0, kinds=KINDS, max_attempts=3)) is not None:
+                got.setdefault(name, []).append(claim.record.id)
+        except BaseException as exc:
+            errors.append(exc)
+        finally:
+            own.dispose()
+
+    threads = [threading.Thread(target=worker, args=(f"w{k}",)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=60)
+    claimed = [i for v in got.values() for i in v]
+    assert errors == [] and sorted(claimed) == sorted(ids), "every job claimed exactly once"
 
 
 def test_restart_keeps_the_registry(database_url: str) -> None:

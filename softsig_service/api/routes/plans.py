@@ -33,15 +33,32 @@ def _links(plan_id: str) -> dict[str, str]:
     return {"self": f"/v1/plans/{plan_id}", "image": f"/v1/plans/{plan_id}/image.png"}
 
 
-def make_plan(ctx: AppContext, body: PlanIn) -> dict[str, Any]:
+def _plan_hand(ctx: AppContext, body: PlanIn) -> repo.HandRecord:
+    try:
+        return ctx.hand(body.hand)
+    except HandNotFound as exc:
+        raise InvalidInput("unknown hand", field="hand", value=body.hand, choices=exc.choices) from None
+
+
+async def _ensure_planning_model(ctx: AppContext, hand: repo.HandRecord, body: PlanIn) -> None:
+    """Build the hand's planning model (it simulates the hand's closure) in the compute pool, under its time
+    limit, unless this process has it already; never in the request's thread."""
+    from softsig_service.planning import build_planning_model, cached_planning_model, remember_planning_model
+
+    key = (hand.manifest_path, body.cs_method, None, body.cs_criterion)
+    if cached_planning_model(*key) is None:
+        model = await ctx.pool.run(
+            build_planning_model, *key, what="building the hand's planning model (its closure)", field="hand"
+        )
+        remember_planning_model(model, *key)
+
+
+def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRecord | None = None) -> dict[str, Any]:
     """Plan ``body`` with the app's planner and store it (unless ``store`` is false); the plan JSON."""
     from softsig_service.objects import object_from_json
     from softsig_service.planning.planner import PlanRequest
 
-    try:
-        hand = ctx.hand(body.hand)
-    except HandNotFound as exc:
-        raise InvalidInput("unknown hand", field="hand", value=body.hand, choices=exc.choices) from None
+    hand = hand or _plan_hand(ctx, body)
     obj = object_from_json(object_json(body.object))
     request = PlanRequest(
         hand=hand.manifest_path,
@@ -80,10 +97,12 @@ def _plan_out(rec: repo.PlanRecord) -> dict[str, Any]:
     responses={200: {"model": PlanOut, "description": "the plan, not stored (store: false)"}, **WRITE},
     summary="Plan a top grasp (synchronous)",
 )
-def create_plan(ctx: Ctx, body: PlanIn, response: Response) -> dict[str, Any]:
+async def create_plan(ctx: Ctx, body: PlanIn, response: Response) -> dict[str, Any]:
     """Plan a UR5 top grasp of an object with strategy S or C; the plan (``success`` may be false, with
     ``reasons``): 201 with ``Location`` when stored, 200 with ``store: false`` (nothing is created)."""
-    data = make_plan(ctx, body)
+    hand = await run_in_threadpool(_plan_hand, ctx, body)
+    await _ensure_planning_model(ctx, hand, body)
+    data = await run_in_threadpool(make_plan, ctx, body, hand)
     if data.get("id"):
         response.headers["Location"] = f"/v1/plans/{data['id']}"
     else:

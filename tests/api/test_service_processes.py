@@ -1,0 +1,130 @@
+"""Several service processes on one registry (``softsig serve``, real processes on a real SQLite file): they share
+the jobs, and a job whose process is killed (``kill -9``) completes in the other process once its lease expires."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import sqlite3
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+from api_helpers import pid_alive, wait_for
+
+KEY = {"X-API-Key": "k"}
+BOX = {"kind": "box", "size": [0.16, 0.06, 0.05], "mass": 0.15}
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class Service:
+    """One ``softsig serve --workers 1`` process."""
+
+    def __init__(self, data_dir: Path, log: Path) -> None:
+        self.port = _free_port()
+        env = {
+            **os.environ,
+            "SOFTSIG_DATA_DIR": str(data_dir),
+            "SOFTSIG_API_KEYS": "k",
+            "SOFTSIG_WARM_PLANNER": "false",
+            "SOFTSIG_JOB_LEASE": "2",
+            "SOFTSIG_JOB_POLL_INTERVAL": "0.2",
+        }
+        self.log = log.open("w")
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "softsig_service.cli", "serve", "--workers", "1", "--port", str(self.port)],
+            env=env, stdout=self.log, stderr=subprocess.STDOUT,
+        )  # fmt: skip
+        self.http = httpx.Client(base_url=f"http://127.0.0.1:{self.port}", timeout=30.0)
+
+    def ready(self) -> bool:
+        assert self.proc.poll() is None, "the service exited"
+        try:
+            return self.http.get("/readyz").status_code == 200
+        except httpx.TransportError:
+            return False
+
+    def job(self, job_id: str) -> dict[str, Any]:
+        body: dict[str, Any] = self.http.get(f"/v1/jobs/{job_id}").json()
+        return body
+
+    def validate(self, trials: int) -> str:
+        r = self.http.post(
+            "/v1/validations", headers=KEY,
+            json={"hand": "parallel_gripper", "object": BOX, "strategy": "S", "trials": trials},
+        )  # fmt: skip
+        assert r.status_code == 202, r.text
+        return str(r.json()["id"])
+
+    def stop(self) -> None:
+        self.http.close()
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(30)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(10)
+        self.log.close()
+
+
+@pytest.fixture()
+def services(tmp_path: Path) -> Iterator[tuple[Service, Service]]:
+    data = tmp_path / "data"
+    pair = (Service(data, tmp_path / "a.log"), Service(data, tmp_path / "b.log"))
+    try:
+        for s in pair:
+            wait_for(s.ready, timeout=180, poll=0.2)
+        yield pair
+    finally:
+        for s in pair:
+            s.stop()
+
+
+def _owner_pid(data: Path, job_id: str) -> int | None:
+    with sqlite3.connect(data / "registry.sqlite3") as db:
+        row = db.execute("SELECT owner FROM jobs WHERE id = ?", (job_id,)).fetchone()
+    return int(row[0].split(":")[1]) if row and row[0] else None
+
+
+def _done(service: Service, job_id: str) -> dict[str, Any] | None:
+    job = service.job(job_id)
+    return job if job["status"] not in ("queued", "running") else None
+
+
+def test_two_processes_share_the_jobs_of_one_registry(services: tuple[Service, Service], tmp_path: Path) -> None:
+    a, b = services
+    ids = [a.validate(trials=2), a.validate(trials=2)]
+    jobs = [wait_for(lambda i=i: _done(b, i), timeout=240) for i in ids]  # b sees what a was given
+    assert [j["status"] for j in jobs] == ["succeeded", "succeeded"], jobs
+    assert all(j["attempts"] == 1 for j in jobs), "neither failed or redid the other's job"
+    owners = {_owner_pid(tmp_path / "data", i) for i in ids}
+    assert owners == {a.proc.pid, b.proc.pid}, "each process ran one (a runs one job at a time)"
+
+
+def test_a_killed_process_leaves_its_job_to_the_other(services: tuple[Service, Service], tmp_path: Path) -> None:
+    a, b = services
+    job_id = a.validate(trials=8)
+    wait_for(lambda: a.job(job_id)["status"] == "running" and a.job(job_id)["progress"] > 0, timeout=240)
+    holder = _owner_pid(tmp_path / "data", job_id)
+    victim, survivor = (a, b) if holder == a.proc.pid else (b, a)
+    assert holder == victim.proc.pid
+    victim.proc.send_signal(signal.SIGKILL)
+    victim.proc.wait(10)
+    job = wait_for(lambda: _done(survivor, job_id), timeout=240)
+    assert job["status"] == "succeeded" and job["attempts"] == 2, job
+    assert job["result"]["trials"] == 8 and len(job["result"]["outcomes"]) == 8
+    assert _owner_pid(tmp_path / "data", job_id) == survivor.proc.pid
+    files = {f["name"] for f in survivor.http.get(f"/v1/jobs/{job_id}/files").json()["items"]}
+    assert {"validation.json", "outcomes.csv"} <= files
+    assert not pid_alive(victim.proc.pid)
