@@ -92,6 +92,17 @@ def process_cpu_seconds(pid: int) -> float:
     return sum(int(v) for p in tree if p in stats for v in stats[p][11:15]) / os.sysconf("SC_CLK_TCK")
 
 
+def wait_idle(pid: int, *, below: float = 0.05, timeout: float = 120.0) -> None:
+    """Wait until the server's processes use less than ``below`` cores over a second (its worker processes have
+    finished starting), so that their start-up does not count against the first run."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        before = process_cpu_seconds(pid)
+        time.sleep(1.0)
+        if process_cpu_seconds(pid) - before < below:
+            return
+
+
 def run(
     url: str, *, n: int, concurrency: int, seconds: float, strategy: str, store: bool, server_pid: int
 ) -> dict[str, Any]:
@@ -187,6 +198,7 @@ def main() -> None:
         proc, url = start_server(Path(tmp), args.workers)
         try:
             pid = proc.pid
+            wait_idle(pid)
             run(url, n=30, concurrency=2, seconds=30, strategy=args.strategy, store=True, server_pid=pid)  # warm-up
             rows = [
                 run(url, n=max(50, args.requests // 4), concurrency=1, seconds=args.seconds, strategy=args.strategy,
