@@ -238,11 +238,13 @@ class Approach(Out):
 
 
 class Quality(Out):
-    """Quality terms: ``alignment_error`` [rad], ``ik_residual`` [m], ``clearance`` [m]."""
+    """Quality terms: ``alignment_error`` [rad], ``ik_residual`` [m], ``clearance`` [m]; ``expected_capture``
+    (strategy R only): the capture probability R expects under the stated pose noise, in [0, 1]."""
 
     alignment_error: float | None = None
     ik_residual: float | None = None
     clearance: float | None = None
+    expected_capture: float | None = None
 
 
 class PlanOut(Out):

@@ -209,9 +209,13 @@ def table1(
         str | None,
         typer.Option("--conditions", help="indices of the Table I conditions to run, e.g. 2 or 0,2 (default all)"),
     ] = None,
-    strategies: Annotated[str, typer.Option("--strategies", help="comma-separated strategies: S,C (default)")] = (
-        "S,C"
-    ),
+    strategies: Annotated[
+        str,
+        typer.Option(
+            "--strategies",
+            help="comma-separated strategies: S,C (default), or with R (builds the capture models first)",
+        ),
+    ] = ("S,C"),
 ) -> None:
     """Run the paper's Table I in simulation: 3 uncertainty levels x box, apple, cylinder x S, C."""
     with _errors():

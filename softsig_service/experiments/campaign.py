@@ -15,18 +15,23 @@ cell (condition ``(sigma_r [rad], sigma_t [m])``, object, strategy) ``trials`` t
 * **Files** in ``out``: ``campaign.json`` (the spec), ``trials.jsonl`` (one JSON record per finished trial,
   appended and flushed as trials finish), and when every trial is done (or at :func:`write_report`):
   ``results.json`` (spec, records sorted by index, summary), ``results.csv``, ``report.md`` and ``table1.png``.
+* **Strategy R** (:mod:`softsig_service.planning.strategy_r`): before the trials, the hand's capture model on
+  each object is read from ``capture/<object>.json`` or built there by simulation
+  (:mod:`softsig_service.experiments.capture`); R's trials plan with it for their condition's sigmas.
 * **Resuming**: running the same spec with the same ``out`` skips every trial already in ``trials.jsonl`` (a
   torn last line of an interrupted run is ignored). A different spec in the same folder is refused.
 * **Report** (:mod:`softsig_service.experiments.report`): a Markdown table laid out like the paper's Table I
   (rows objects, columns conditions, each cell
   "S / C" successes out of N) beside the paper's real-robot counts, Wilson 95 % intervals
   (``scipy.stats.binomtest(...).proportion_ci(method="wilson")``), Fisher's exact test of S vs C per cell,
-  pooled per condition and overall (two-sided, and one-sided for the paper's claim C > S), the failure
-  reasons, and a bar chart (matplotlib, Agg).
+  pooled per condition and overall (two-sided, and one-sided for the paper's claim C > S), with R: R against the
+  better of S and C the same way (one-sided: R better), the failure reasons, and a bar chart (matplotlib, Agg).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import json
 import os
 import time
@@ -39,9 +44,17 @@ from pathlib import Path
 from typing import Any, Literal
 
 from softsig_service.errors import Conflict, InvalidInput
-from softsig_service.experiments.campaign_spec import BACKENDS, SPEC_FILE, TRIALS_FILE, CampaignSpec, TrialSpec
+from softsig_service.experiments.campaign_spec import (
+    BACKENDS,
+    CAPTURE_DIR,
+    SPEC_FILE,
+    TRIALS_FILE,
+    CampaignSpec,
+    TrialSpec,
+)
 from softsig_service.experiments.report import write_report
 from softsig_service.experiments.statistics import summarize
+from softsig_service.signatures.capture import CaptureModel
 
 
 def run_trial_spec(spec: TrialSpec) -> dict[str, Any]:
@@ -53,6 +66,9 @@ def run_trial_spec(spec: TrialSpec) -> dict[str, Any]:
     from softsig_service.objects import builtin_object
 
     obj = builtin_object(spec.object, x=spec.x, y=spec.y, yaw=spec.yaw)
+    options: dict[str, Any] = {"cs_method": spec.cs_method, "cs_criterion": spec.criterion, "placement": spec.placement}
+    if spec.strategy == "R":
+        options["capture"] = load_capture(spec.capture_file)
     result = run_trial(
         spec.hand,
         obj,
@@ -60,11 +76,43 @@ def run_trial_spec(spec: TrialSpec) -> dict[str, Any]:
         seed=spec.seed,
         sigma_r=spec.sigma_r,
         sigma_t=spec.sigma_t,
-        plan_options={"cs_method": spec.cs_method, "cs_criterion": spec.criterion, "placement": spec.placement},
+        plan_options=options,
     )
     record = result.to_json_dict()
     record.update(key=spec.key, index=spec.index, condition=spec.condition, trial=spec.trial, pid=os.getpid())
     return record
+
+
+@functools.lru_cache(maxsize=16)
+def load_capture(path: str) -> CaptureModel:
+    """The capture model stored at ``path`` (JSON of :meth:`CaptureModel.to_json_dict`), read once per process."""
+    return CaptureModel.from_json_dict(json.loads(Path(path).read_text(encoding="utf-8")))
+
+
+def ensure_capture_models(spec: CampaignSpec, out: Path, workers: int) -> dict[str, Path]:
+    """For a campaign with strategy R: the capture model of the hand on each object, read from
+    ``out/capture/<object>.json`` or built now (:func:`~softsig_service.experiments.capture.build_capture_model`
+    with its default grid, at the campaign's nominal pose and placement) and written there. Object -> file."""
+    from softsig_service.experiments.capture import build_capture_model
+    from softsig_service.objects import builtin_object
+
+    folder = out / CAPTURE_DIR
+    folder.mkdir(parents=True, exist_ok=True)
+    files: dict[str, Path] = {}
+    for name in spec.objects:
+        path = folder / f"{name}.json"
+        if not path.is_file():
+            obj = builtin_object(name, x=spec.x, y=spec.y, yaw=spec.yaw)
+            model = build_capture_model(
+                spec.hand, obj.to_json(), workers=workers,
+                plan_options={"cs_method": spec.cs_method, "cs_criterion": spec.criterion,
+                              "placement": spec.placement},
+            )  # fmt: skip
+            tmp = path.with_suffix(".tmp")
+            tmp.write_text(json.dumps(model.to_json_dict()) + "\n", encoding="utf-8")
+            os.replace(tmp, path)
+        files[name] = path
+    return files
 
 
 def _worker_init() -> None:
@@ -186,6 +234,9 @@ def run_campaign(
     _check_out_dir(out, spec)
     trials_path = out / TRIALS_FILE
     specs = spec.trial_specs()
+    if "R" in spec.strategies:
+        capture = ensure_capture_models(spec, out, n_workers if backend == "local" else 1)
+        specs = [dataclasses.replace(t, capture_file=str(capture[t.object])) if t.strategy == "R" else t for t in specs]
     by_key = {t.key: t for t in specs}
     done = {r["key"]: r for r in read_records(trials_path) if r["key"] in by_key}
     todo = [t for t in specs if t.key not in done]

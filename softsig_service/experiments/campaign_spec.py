@@ -25,6 +25,11 @@ TABLE1_CONDITIONS: tuple[Condition, ...] = ((0.0, 0.0), (0.1, 0.01), (0.2, 0.02)
 """The paper's three uncertainty levels (docs/design.md §7)."""
 TABLE1_OBJECTS: tuple[str, ...] = ("box", "apple", "cylinder")
 STRATEGY_NAMES: tuple[str, ...] = ("S", "C")
+"""The strategies a campaign runs by default (the paper's)."""
+ALL_STRATEGIES: tuple[str, ...] = ("S", "C", "R")
+"""The strategies a campaign may run; R uses the hand's capture model on each object (``capture/<object>.json``
+in the campaign folder, built by the campaign when missing)."""
+CAPTURE_DIR = "capture"
 PAPER_TABLE1: dict[str, tuple[tuple[int, int], ...]] = {
     "box": ((17, 20), (15, 16), (3, 11)),
     "apple": ((20, 20), (19, 19), (17, 15)),
@@ -67,6 +72,8 @@ class TrialSpec:
     cs_method: str = "ellipsoid"
     criterion: str = "absolute"
     placement: str = "open_centre"
+    capture_file: str = ""
+    """Strategy R: the capture model's JSON file (set by the campaign runner)."""
 
     @property
     def key(self) -> str:
@@ -126,8 +133,10 @@ class CampaignSpec:
             if name not in BUILTIN_NAMES:
                 raise InvalidInput("unknown object", field="objects", value=name, choices=BUILTIN_NAMES)
         for s in self.strategies:
-            if s not in STRATEGY_NAMES:
-                raise InvalidInput("unknown strategy", field="strategies", value=s, choices=STRATEGY_NAMES)
+            if s not in ALL_STRATEGIES:
+                raise InvalidInput("unknown strategy", field="strategies", value=s, choices=ALL_STRATEGIES)
+        if len(set(self.strategies)) != len(self.strategies):
+            raise InvalidInput("a strategy is named twice", field="strategies", value=list(self.strategies))
 
     def trial_specs(self) -> list[TrialSpec]:
         """Every trial, in the order condition, object, strategy, trial."""

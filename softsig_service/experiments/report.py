@@ -46,7 +46,7 @@ def report_markdown(spec: CampaignSpec, summary: Mapping[str, Any], wall_time: f
     )
     if wall_time is not None:
         lines.append(f"Wall time of the last run: {wall_time:.1f} s.")
-    lines += ["", "## Successes, S / C (out of N per cell)", ""]
+    lines += ["", f"## Successes, {' / '.join(spec.strategies)} (out of N per cell)", ""]
     header = "| object | " + " | ".join(_cond_label(c) for c in spec.conditions) + " |"
     lines += [header, "|---" * (len(spec.conditions) + 1) + "|"]
     cells = {(c["condition"], c["object"]): c for c in summary["cells"]}
@@ -67,7 +67,7 @@ def report_markdown(spec: CampaignSpec, summary: Mapping[str, Any], wall_time: f
         for obj in spec.objects:
             if obj in PAPER_TABLE1:
                 lines.append("| " + obj + " | " + " | ".join(f"{s} / {c}" for s, c in PAPER_TABLE1[obj]) + " |")
-    if set(spec.strategies) == {"S", "C"}:
+    if {"S", "C"} <= set(spec.strategies):
         lines += [
             "",
             "## Per cell: Wilson 95 % intervals and Fisher's exact test (S vs C)",
@@ -100,6 +100,8 @@ def report_markdown(spec: CampaignSpec, summary: Mapping[str, Any], wall_time: f
         lines.append(
             f"| all | {_ci(o['S'])} | {_ci(o['C'])} | {o['fisher']['two_sided']:.3g} | {o['fisher']['c_greater']:.3g} |"
         )
+    if "R" in spec.strategies and len(spec.strategies) > 1:
+        lines += _r_section(spec, summary)
     lines += ["", "## Failure reasons", "", "| condition | object | strategy | reasons |", "|---|---|---|---|"]
     for c in summary["cells"]:
         for s in spec.strategies:
@@ -107,6 +109,33 @@ def report_markdown(spec: CampaignSpec, summary: Mapping[str, Any], wall_time: f
             lines.append(f"| {_cond_label(spec.conditions[c['condition']])} | {c['object']} | {s} | {rs} |")
     lines += ["", f"Chart: `{CHART_PNG}`.", ""]
     return "\n".join(lines)
+
+
+def _r_section(spec: CampaignSpec, summary: Mapping[str, Any]) -> list[str]:
+    """R against the better of S and C per cell, pooled per condition and overall (Fisher, one-sided: R better)."""
+    others = [s for s in ("S", "C") if s in spec.strategies]
+    lines = [
+        "",
+        "## Strategy R against the better of " + " and ".join(others) + " (Wilson 95 %, Fisher's exact test)",
+        "",
+        "| condition | object | " + " | ".join(others) + " | R | versus | p two-sided | p (R > versus) |",
+        "|---|---|" + "---|" * len(others) + "---|---|---|---|",
+    ]
+
+    def row(label: str, obj: str, d: Mapping[str, Any]) -> str:
+        f = d["fisher_r"]
+        cols = " | ".join(_ci(d[s]) for s in others)
+        return (
+            f"| {label} | {obj} | {cols} | {_ci(d['R'])} | {f['versus']} | {f['two_sided']:.3g} | "
+            f"{f['r_greater']:.3g} |"
+        )
+
+    for c in summary["cells"]:
+        lines.append(row(_cond_label(spec.conditions[c["condition"]]), c["object"], c))
+    for p in summary["pooled_per_condition"]:
+        lines.append(row(_cond_label(spec.conditions[p["condition"]]), "pooled", p))
+    lines.append(row("all", "pooled", summary["pooled"]))
+    return lines
 
 
 def plot_summary(spec: CampaignSpec, summary: Mapping[str, Any], path: Path) -> None:
@@ -119,7 +148,7 @@ def plot_summary(spec: CampaignSpec, summary: Mapping[str, Any], path: Path) -> 
     fig = Figure(figsize=(3.2 * len(spec.objects) + 1.0, 3.6))
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, len(spec.objects), sharey=True, squeeze=False)[0]
-    colors = {"S": "#9e9e9e", "C": "#d95f02"}
+    colors = {"S": "#9e9e9e", "C": "#d95f02", "R": "#1b9e77"}
     width = 0.8 / len(spec.strategies)
     x = np.arange(len(spec.conditions))
     for ax, obj in zip(axes, spec.objects, strict=True):
@@ -132,7 +161,7 @@ def plot_summary(spec: CampaignSpec, summary: Mapping[str, Any], path: Path) -> 
                 lo.append(r - d["wilson95"][0])
                 hi.append(d["wilson95"][1] - r)
                 p = cells[(i, obj)].get("paper")
-                paper.append(p[s] / p["trials"] if p else np.nan)
+                paper.append(p[s] / p["trials"] if p and s in p else np.nan)
             pos = x - 0.4 + width * (k + 0.5)
             ax.bar(pos, rates, width, color=colors.get(s), label=f"{s} (sim)", yerr=[lo, hi], capsize=3)
             ax.plot(pos, paper, "k^" if s == "S" else "kv", markersize=6, label=f"{s} (paper)")

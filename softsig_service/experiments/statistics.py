@@ -32,6 +32,15 @@ def fisher_p(s_succ: int, s_n: int, c_succ: int, c_n: int) -> dict[str, float]:
     return {"two_sided": float(two), "c_greater": float(less)}
 
 
+def r_versus_best(pairs: Mapping[str, tuple[int, int]]) -> dict[str, Any]:
+    """Fisher's exact test of R against the better of S and C (by success rate; C on a tie): ``versus`` (which),
+    ``two_sided`` and ``r_greater`` (one-sided, alternative: R's success rate is higher)."""
+    rates = {s: (k / n if n else -1.0) for s, (k, n) in pairs.items() if s in ("S", "C")}
+    best = max(rates, key=lambda s: (rates[s], s == "C"))
+    p = fisher_p(*pairs[best], *pairs["R"])
+    return {"versus": best, "two_sided": p["two_sided"], "r_greater": p["c_greater"]}
+
+
 def _counts(records: Iterable[Mapping[str, Any]]) -> dict[tuple[int, str, str], tuple[int, int]]:
     out: dict[tuple[int, str, str], list[int]] = {}
     for r in records:
@@ -54,6 +63,8 @@ def summarize(spec: CampaignSpec, records: Sequence[Mapping[str, Any]]) -> dict[
             d[s] = {"successes": k, "trials": n, "rate": k / n if n else None, "wilson95": wilson_interval(k, n)}
         if "S" in pairs and "C" in pairs:
             d["fisher"] = fisher_p(*pairs["S"], *pairs["C"])
+        if "R" in pairs and ("S" in pairs or "C" in pairs):
+            d["fisher_r"] = r_versus_best(pairs)
         return d
 
     paper = _paper_counts(spec)

@@ -120,7 +120,7 @@ def default_planner(settings: Settings | None = None) -> Planner:
 def run_trial(
     hand: str,
     obj: TableObject,
-    strategy: Literal["S", "C"],
+    strategy: Literal["S", "C", "R"],
     *,
     seed: int,
     sigma_r: float = 0.0,
@@ -132,13 +132,16 @@ def run_trial(
     on_frame: FrameCallback | None = None,
     frame_period: float = 1.0 / 30.0,
     plan_options: Mapping[str, Any] | None = None,
+    perturbation: Perturbation | None = None,
 ) -> TrialResult:
     """Run one trial (module docstring) of ``hand`` grasping ``obj`` (its nominal pose) with ``strategy``.
 
     ``sigma_r`` [rad] and ``sigma_t`` [m] are the standard deviations of the object's yaw and x, y offsets;
     ``seed`` seeds them. ``plan`` skips planning (a plan for the same hand, object and strategy, e.g. to test
     a moved plan). ``on_frame`` is called every ``frame_period`` [s] of sim time (videos, frames).
-    ``plan_options`` are further :class:`PlanRequest` fields (``cs_method``, ``cs_criterion``, ``placement``...).
+    ``plan_options`` are further :class:`PlanRequest` fields (``cs_method``, ``cs_criterion``, ``placement``,
+    ``capture``...); strategy R plans for ``sigma_r`` and ``sigma_t``. ``perturbation`` moves the simulated object
+    by a given offset instead of one drawn from ``seed`` and the sigmas (the capture model's simulations).
     Raises :class:`InvalidInput` for negative sigmas; never for an infeasible plan or a failed grasp.
     """
     t_wall = time.perf_counter()
@@ -147,7 +150,7 @@ def run_trial(
         if not (math.isfinite(v) and v >= 0.0):
             raise InvalidInput("must be a finite number >= 0", field=name, value=v)
     planner = planner or default_planner(settings)
-    pert = Perturbation.draw(seed, sigma_r, sigma_t)
+    pert = perturbation if perturbation is not None else Perturbation.draw(seed, sigma_r, sigma_t)
     common: dict[str, Any] = {
         "seed": seed,
         "perturbation": pert,
@@ -159,7 +162,11 @@ def run_trial(
 
     t0 = time.perf_counter()
     if plan is None:
-        plan = planner.plan(PlanRequest(hand=hand, obj=obj, strategy=strategy, **dict(plan_options or {})))
+        options = dict(plan_options or {})
+        if strategy == "R":
+            options.setdefault("sigma_r", sigma_r)
+            options.setdefault("sigma_t", sigma_t)
+        plan = planner.plan(PlanRequest(hand=hand, obj=obj, strategy=strategy, **options))
     t_plan = time.perf_counter() - t0
 
     def early(reason: str, timing: dict[str, float]) -> TrialResult:

@@ -49,7 +49,9 @@ from softsig_service.planning.hand_model import (
     planning_model,
 )
 from softsig_service.planning.strategies import STRATEGIES, axis_angle_between_lines, strategy_s_poses
+from softsig_service.planning.strategy_r import c_relative_theta, relative_poses, solve_strategy_r
 from softsig_service.planning.wrist_pose import solve_wrist_pose_unchecked
+from softsig_service.signatures.capture import CaptureModel
 from softsig_service.signatures.closure_types import CRITERIA, Criterion
 
 START_HEIGHT = 0.5
@@ -66,7 +68,7 @@ class PlanRequest:
 
     hand: str
     obj: TableObject
-    strategy: Literal["S", "C"]
+    strategy: Literal["S", "C", "R"]
     current_q: tuple[float, ...] | None = None
     closing_axis: Literal["minor", "major"] = "minor"
     approach_distance: float = 0.10
@@ -74,10 +76,27 @@ class PlanRequest:
     cs_method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid"
     cs_criterion: Criterion = "absolute"
     placement: Placement = DEFAULT_PLACEMENT
+    sigma_r: float = 0.0
+    """[rad] standard deviation of the object's yaw about its nominal pose (strategy R plans for it)."""
+    sigma_t: float = 0.0
+    """[m] standard deviation of the object's x and y about its nominal pose (strategy R plans for it)."""
+    capture: CaptureModel | None = None
+    """The hand's capture model on this object (strategy R; :mod:`softsig_service.signatures.capture`)."""
+    relative_pose: tuple[float, float, float] | None = None
+    """Put the hand at this relative pose (theta [rad], u, v [m]; :mod:`softsig_service.signatures.capture`)
+    instead of the strategy's choice (diagnostics and the capture model's simulations)."""
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGIES:
             raise InvalidInput("unknown strategy", field="strategy", value=self.strategy, choices=STRATEGIES)
+        for name, value in (("sigma_r", self.sigma_r), ("sigma_t", self.sigma_t)):
+            if not (math.isfinite(value) and 0.0 <= value <= 1.0):
+                raise InvalidInput("must be a finite number in [0, 1]", field=name, value=value)
+        if self.strategy == "R" and self.capture is None and self.relative_pose is None:
+            raise InvalidInput("strategy R needs the hand's capture model on this object", field="capture")
+        if self.relative_pose is not None:
+            rel = as_finite_array(self.relative_pose, (3,), "relative_pose")
+            object.__setattr__(self, "relative_pose", tuple(float(x) for x in rel))
         if self.placement not in PLACEMENTS:
             raise InvalidInput("unknown placement", field="placement", value=self.placement, choices=PLACEMENTS)
         if self.cs_criterion not in CRITERIA:
@@ -200,7 +219,8 @@ class Planner:
 
         t0 = time.perf_counter()
         candidates: list[_Candidate] = []
-        if req.strategy == "C":
+        expected_capture: float | None = None
+        if req.strategy == "C" and req.relative_pose is None:
             sols = solve_wrist_pose_unchecked(
                 model.signature.axis, hand_point, model.points_open, center, closing,
                 table_height=obj.table_height, margin=req.margin,
@@ -210,6 +230,16 @@ class Planner:
                 if not s.success:
                     c.reasons.append("alignment_impossible" if s.status == "alignment_impossible" else "unreachable")
                 candidates.append(c)
+        elif req.relative_pose is not None:
+            for T in relative_poses(center, obj.o1, hand_point, *req.relative_pose):
+                candidates.append(_Candidate(T=T, status="relative_pose", iterations=0))
+        elif req.strategy == "R":
+            assert req.capture is not None
+            theta_c = c_relative_theta(model.signature.axis, req.closing_axis)
+            choice = solve_strategy_r(req.capture, req.sigma_r, req.sigma_t, theta_c)
+            expected_capture = choice.expected
+            for T in relative_poses(center, obj.o1, hand_point, choice.theta, choice.u, choice.v):
+                candidates.append(_Candidate(T=T, status=f"r:{choice.status}", iterations=choice.iterations))
         else:
             for T in strategy_s_poses(center, obj.o1, hand_point):
                 candidates.append(_Candidate(T=T, status="closed_form", iterations=0))
@@ -239,7 +269,7 @@ class Planner:
         feasible = [c for c in candidates if not c.reasons and c.q_pre is not None]
         best = min(feasible, key=lambda c: c.distance) if feasible else _most_advanced(candidates)
         R = best.T[:3, :3]
-        if req.strategy == "C":
+        if req.strategy in ("C", "R"):
             align = axis_angle_between_lines(R @ model.signature.axis, closing)
         else:
             align = axis_angle_between_lines(R[:, 0], obj.o1)
@@ -262,7 +292,12 @@ class Planner:
                 "desired_distance": req.approach_distance,
                 "min_distance": 0.5 * req.approach_distance,
             },
-            quality={"alignment_error": align, "ik_residual": best.ik_residual, "clearance": best.clearance},
+            quality={
+                "alignment_error": align,
+                "ik_residual": best.ik_residual,
+                "clearance": best.clearance,
+                "expected_capture": expected_capture,
+            },
             timing={
                 "strategy": t_strategy,
                 "ik": t_ik,

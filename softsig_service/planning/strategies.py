@@ -13,7 +13,8 @@ from numpy.typing import NDArray
 
 from softsig_service.planning.wrist_pose import hand_rotation
 
-STRATEGIES = ("S", "C")
+STRATEGIES = ("S", "C", "R")
+"""S: bounding box; C: closure signature; R: robust to the stated pose uncertainty (needs a capture model)."""
 
 
 def axis_angle_between_lines(u: NDArray[np.float64], v: NDArray[np.float64]) -> float:

@@ -123,14 +123,14 @@ def test_plan_json_poses_round_trip_the_quaternion(planner: Planner) -> None:
     assert plan.grasp_pose is not None
     np.testing.assert_allclose(quat_to_matrix(back.quaternion), plan.grasp_pose[:3, :3], atol=1e-12)
     np.testing.assert_allclose(back.position, plan.grasp_pose[:3, 3], atol=1e-12)
-    assert set(data["quality"]) == {"alignment_error", "ik_residual", "clearance"}
+    assert set(data["quality"]) == {"alignment_error", "ik_residual", "clearance", "expected_capture"}
 
 
 def test_bad_requests_name_the_field() -> None:
     obj = builtin_object("box")
     with pytest.raises(InvalidInput) as info:
         PlanRequest(hand="sdm_hand", obj=obj, strategy="X")  # type: ignore[arg-type]
-    assert info.value.field == "strategy" and info.value.choices == ["C", "S"]
+    assert info.value.field == "strategy" and info.value.choices == ["C", "R", "S"]
     with pytest.raises(InvalidInput) as info:
         PlanRequest(hand="sdm_hand", obj=obj, strategy="S", approach_distance=float("nan"))
     assert info.value.field == "approach_distance"

@@ -1,0 +1,147 @@
+"""The capture model of a hand on an object, from MuJoCo grasp simulations over a grid of relative poses.
+
+For each relative yaw ``theta`` of the grid (:mod:`softsig_service.signatures.capture` for the coordinates) the
+planner places the hand at ``(theta, 0, 0)`` on the nominal object (its usual descent, IK and collision checks:
+``PlanRequest.relative_pose``); then, for each offset ``(u, v)`` of the grid, the object is moved so that its
+centre lies at ``(u, v)`` from the hand's placement point along the hand's axes, and the grasp is rolled out and
+judged as in a campaign trial (docs/design.md §7: approach, closure, lift, hold; carried or not). The hand's
+descent is the one planned for the nominal object, as it is under pose noise. ``holdout`` further simulations at
+uniformly drawn ``(theta, u, v)`` measure how often the interpolated model predicts their outcome.
+
+Cost: ``n_theta * (2 * half_width / step + 1)^2 + holdout`` simulations (12 x 49 + 60 = 648 by default), run in
+``workers`` processes.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass
+from multiprocessing import get_context
+from typing import Any
+
+import numpy as np
+
+from softsig_service.errors import InvalidInput
+from softsig_service.signatures.capture import CaptureModel, agreement, theta_axis, uniform_axis
+
+CaptureSample = tuple[float, float, float, bool]
+"""``(theta [rad], u [m], v [m], carried)``."""
+
+
+@dataclass(frozen=True)
+class CaptureGrid:
+    """The simulations of a capture model: ``n_theta`` yaws over a half turn, offsets ``-half_width ..
+    half_width`` [m] in steps of ``step`` [m] along both hand axes, ``holdout`` random checks (seeded)."""
+
+    n_theta: int = 12
+    half_width: float = 0.03
+    step: float = 0.01
+    holdout: int = 60
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not 2 <= self.n_theta <= 72:
+            raise InvalidInput("must be within [2, 72]", field="n_theta", value=self.n_theta)
+        if not (0.0 < self.step <= self.half_width <= 0.1):
+            raise InvalidInput("need 0 < step <= half_width <= 0.1 m", field="half_width", value=self.half_width)
+        if not 0 <= self.holdout <= 10_000:
+            raise InvalidInput("must be within [0, 10000]", field="holdout", value=self.holdout)
+
+
+def _simulate_yaw(
+    hand: str, obj_json: dict[str, Any], theta: float, offsets: list[tuple[float, float]], plan_options: dict[str, Any]
+) -> list[CaptureSample]:
+    """One yaw: plan the hand at ``(theta, 0, 0)`` once, then roll out each object offset ``(u, v)``."""
+    from softsig_service.gl_backend import prepare_mujoco
+
+    prepare_mujoco()
+    from softsig_service.experiments.trial import default_planner, run_trial
+    from softsig_service.objects import object_from_json
+    from softsig_service.planning.planner import PlanRequest
+    from softsig_service.simulation.rollout import Perturbation
+
+    obj = object_from_json(obj_json)
+    planner = default_planner()
+    plan = planner.plan(PlanRequest(hand=hand, obj=obj, strategy="S", relative_pose=(theta, 0.0, 0.0), **plan_options))
+    out: list[CaptureSample] = []
+    if not plan.success or plan.grasp_pose is None:
+        return [(theta, u, v, False) for u, v in offsets]
+    R = np.asarray(plan.grasp_pose)[:3, :3]
+    for u, v in offsets:
+        shift = u * R[:, 0] + v * R[:, 1]
+        pert = Perturbation(d_yaw=0.0, dx=float(shift[0]), dy=float(shift[1]))
+        result = run_trial(hand, obj, "S", seed=0, planner=planner, plan=plan, perturbation=pert)
+        out.append((theta, u, v, result.success))
+    return out
+
+
+def build_capture_model(
+    hand: str,
+    obj_json: dict[str, Any],
+    grid: CaptureGrid | None = None,
+    *,
+    workers: int = 1,
+    plan_options: dict[str, Any] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> CaptureModel:
+    """Simulate the grid (module docstring) and return the capture model of ``hand`` on the object ``obj_json``
+    (object JSON; its nominal pose is where the simulations happen). ``plan_options``: further
+    :class:`~softsig_service.planning.planner.PlanRequest` fields (``placement``...)."""
+    grid = grid or CaptureGrid()
+    options = dict(plan_options or {})
+    thetas = theta_axis(grid.n_theta)
+    us = uniform_axis(grid.half_width, grid.step)
+    offsets = [(float(u), float(v)) for u in us for v in us]
+    rng = np.random.default_rng(grid.seed)
+    hold = [
+        (float(rng.uniform(-math.pi / 2, math.pi / 2)), float(rng.uniform(-grid.half_width, grid.half_width)),
+         float(rng.uniform(-grid.half_width, grid.half_width)))
+        for _ in range(grid.holdout)
+    ]  # fmt: skip
+    tasks: list[tuple[float, list[tuple[float, float]], bool]] = [(float(t), offsets, False) for t in thetas]
+    tasks += [(t, [(u, v)], True) for t, u, v in hold]
+    total = len(thetas) * len(offsets) + len(hold)
+    t0 = time.perf_counter()
+    grid_samples: list[CaptureSample] = []
+    held_out: list[CaptureSample] = []
+    done = 0
+
+    def collect(samples: list[CaptureSample], is_holdout: bool) -> None:
+        nonlocal done
+        (held_out if is_holdout else grid_samples).extend(samples)
+        done += len(samples)
+        if progress is not None:
+            progress(done, total)
+
+    if workers <= 1:
+        for theta, offs, is_holdout in tasks:
+            collect(_simulate_yaw(hand, obj_json, theta, offs, options), is_holdout)
+    else:
+        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as pool:
+            futures = {
+                pool.submit(_simulate_yaw, hand, obj_json, theta, offs, options): is_holdout
+                for theta, offs, is_holdout in tasks
+            }
+            for f in as_completed(futures):
+                collect(f.result(), futures[f])
+    values = np.zeros((len(thetas), len(us), len(us)))
+    index = {round(float(t), 9): i for i, t in enumerate(thetas)}
+    for theta, u, v, carried in grid_samples:
+        j, k = round((u - us[0]) / grid.step), round((v - us[0]) / grid.step)
+        values[index[round(theta, 9)], j, k] = carried
+    model = CaptureModel(thetas, us, us, values)
+    meta = {
+        "hand": hand,
+        "object": obj_json,
+        "grid": asdict(grid),
+        "plan_options": options,
+        "simulations": total,
+        "seconds": time.perf_counter() - t0,
+        "carried_fraction": float(values.mean()),
+        "holdout_agreement": agreement(model, held_out),
+        "holdout": [list(s) for s in held_out],
+    }
+    return CaptureModel(thetas, us, us, values, meta)
