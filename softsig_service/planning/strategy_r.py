@@ -9,8 +9,8 @@ probability that the perturbed object lies in the capture region:
     maximise  E[P(theta + d_yaw, u + d_u, v + d_v)] - eps * ((theta - theta_C)^2 + (u^2 + v^2) / L^2)
 
 over ``theta`` in one period around C's relative yaw ``theta_C`` and ``u``, ``v`` within the model's grid, with
-CasADi (IPOPT) on a B-spline of the expectation (computed on the grid by Gauss-Hermite quadrature, so the
-objective is smooth). The small pull ``eps`` toward C's relative pose (and zero offset) breaks ties: where the
+CasADi (IPOPT) on a B-spline of the expectation (the capture model convolved with the noise on a finer grid, so
+the objective is smooth). The small pull ``eps`` toward C's relative pose (and zero offset) breaks ties: where the
 expected capture is flat, R takes C's pose; with zero sigmas and a capture region symmetric about C's pose, R is
 C. Every local solve starts from the best grid point and from C's pose; the better optimum wins.
 
@@ -100,6 +100,13 @@ def _digest(model: CaptureModel) -> str:
     return hashlib.sha256(payload.encode()).hexdigest()
 
 
+def _clamped_knots(samples: NDArray[np.float64]) -> list[float]:
+    """Knots of a clamped cubic B-spline with one control point per sample, spanning the samples."""
+    n = len(samples)
+    inner = np.linspace(samples[0], samples[-1], max(n - 2, 2))
+    return [float(samples[0])] * 3 + inner.tolist() + [float(samples[-1])] * 3
+
+
 @functools.lru_cache(maxsize=64)
 def _problem(
     key: str, model_json: str, sigma_r: float, sigma_t: float
@@ -107,11 +114,17 @@ def _problem(
     """The expected capture on the model's grid (as a model), its B-spline over three periods of theta, and the
     NLP solver on that surrogate."""
     model = CaptureModel.from_json_dict(json.loads(model_json))
-    T, U, V = np.meshgrid(model.theta, model.u, model.v, indexing="ij")
-    blurred = CaptureModel(model.theta, model.u, model.v, model.expected(T, U, V, sigma_r, sigma_t))
-    th3 = np.concatenate([model.theta - THETA_PERIOD, model.theta, model.theta + THETA_PERIOD])
-    E3 = np.concatenate([blurred.values] * 3, axis=0)
-    surrogate = ca.interpolant("capture", "bspline", [th3, model.u, model.v], E3.ravel(order="F"))
+    blurred = model.blurred(sigma_r, sigma_t)
+    # the surrogate on at most ~SURROGATE_POINTS knots per axis (IPOPT's starting points and answers are judged
+    # on the model itself, so the surrogate only has to point the way)
+    st, su, sv = (max(1, math.ceil(len(a) / SURROGATE_POINTS)) for a in (blurred.theta, blurred.u, blurred.v))
+    th, uu, vv = blurred.theta[::st], blurred.u[::su], blurred.v[::sv]
+    E = blurred.values[::st, ::su, ::sv]
+    th3 = np.concatenate([th - THETA_PERIOD, th, th + THETA_PERIOD])
+    E3 = np.concatenate([E] * 3, axis=0)
+    # a cubic B-spline whose control points are the samples (a smoothing approximation, built without a fit)
+    knots = [_clamped_knots(a) for a in (th3, uu, vv)]
+    surrogate = ca.Function.bspline("capture", knots, E3.ravel(order="F").tolist(), [3, 3, 3], 1, {})
     x = ca.MX.sym("x", 3)
     p = ca.MX.sym("p", 1)  # theta_C
     f = -surrogate(x) + TIE_WEIGHT * ((x[0] - p[0]) ** 2 + (x[1] ** 2 + x[2] ** 2) / OFFSET_SCALE**2)
@@ -121,6 +134,8 @@ def _problem(
     return blurred, surrogate, solver
 
 
+SURROGATE_POINTS = 40
+"""Knots per axis of the B-spline surrogate at most (one period of theta)."""
 REFINE = 4
 """The search grid is the model's grid refined this many times along each axis."""
 

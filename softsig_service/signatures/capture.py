@@ -11,8 +11,8 @@ builds it): ``values[i, j, k]`` is the fraction of simulated grasps at ``(theta[
 object (0 or 1 with one simulation per cell). :meth:`CaptureModel.probability` interpolates it (trilinear,
 periodic in theta, falling to 0 one step beyond the u, v edges): the capture probability of a relative pose.
 :meth:`CaptureModel.expected` is that probability averaged over the pose noise of docs/design.md §7 (yaw
-``N(0, sigma_r^2)`` [rad], shift ``N(0, sigma_t^2)`` [m] in x and y), by Gauss-Hermite quadrature: the smooth
-objective of strategy R (:mod:`softsig_service.planning.strategy_r`).
+``N(0, sigma_r^2)`` [rad], shift ``N(0, sigma_t^2)`` [m] in x and y), by Gaussian convolution on a finer grid:
+the smooth objective of strategy R (:mod:`softsig_service.planning.strategy_r`).
 
 Pure math: no simulation, no I/O.
 """
@@ -32,8 +32,8 @@ from softsig_service.errors import InvalidInput
 FloatArray = NDArray[np.float64]
 THETA_PERIOD = math.pi
 """[rad] the footprints' symmetry: a half turn."""
-QUADRATURE_NODES = 7
-"""Gauss-Hermite nodes per noise dimension in :meth:`CaptureModel.expected`."""
+REFINE = 4
+"""The noise-averaged model (:meth:`CaptureModel.blurred`) is sampled at least this many times finer."""
 
 
 def wrap_theta(theta: ArrayLike) -> FloatArray:
@@ -57,6 +57,7 @@ class CaptureModel:
     values: FloatArray
     meta: dict[str, Any] = field(default_factory=dict)
     _padded: FloatArray = field(init=False, repr=False, compare=False)
+    _blur: dict[tuple[float, float], CaptureModel] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         th, u, v = (np.asarray(a, dtype=np.float64).ravel() for a in (self.theta, self.u, self.v))
@@ -77,6 +78,7 @@ class CaptureModel:
         for name, a in (("theta", th), ("u", u), ("v", v), ("values", vals)):
             object.__setattr__(self, name, a)
         object.__setattr__(self, "_padded", np.pad(vals, ((0, 0), (1, 1), (1, 1))))
+        object.__setattr__(self, "_blur", {})
 
     # ---------------------------------------------------------------------------------------------------
 
@@ -115,23 +117,48 @@ class CaptureModel:
 
     def expected(self, theta: ArrayLike, u: ArrayLike, v: ArrayLike, sigma_r: float, sigma_t: float) -> FloatArray:
         """The capture probability averaged over yaw noise ``N(0, sigma_r^2)`` [rad] and shifts
-        ``N(0, sigma_t^2)`` [m] in x and y (isotropic, so the same along the hand's axes), by Gauss-Hermite
-        quadrature (:data:`QUADRATURE_NODES` per noisy dimension)."""
-        th, uu, vv = np.broadcast_arrays(*(np.asarray(a, dtype=np.float64) for a in (theta, u, v)))
-        x, w = np.polynomial.hermite_e.hermegauss(QUADRATURE_NODES)
-        w = w / w.sum()
-        zero, one = np.zeros(1), np.ones(1)
-        dt, wt = (sigma_r * x, w) if sigma_r > 0 else (zero, one)
-        ds, ws = (sigma_t * x, w) if sigma_t > 0 else (zero, one)
-        DT, DU, DV = np.meshgrid(dt, ds, ds, indexing="ij")
-        W = (wt[:, None, None] * ws[None, :, None] * ws[None, None, :]).ravel()
-        extra = (1,) * th.ndim
-        p = self.probability(
-            th[..., None] + DT.ravel().reshape((*extra, -1)),
-            uu[..., None] + DU.ravel().reshape((*extra, -1)),
-            vv[..., None] + DV.ravel().reshape((*extra, -1)),
-        )
-        return np.asarray(p @ W, dtype=np.float64)
+        ``N(0, sigma_t^2)`` [m] in x and y (isotropic, so the same along the hand's axes): the interpolated
+        :meth:`blurred` model."""
+        return self.blurred(sigma_r, sigma_t).probability(theta, u, v)
+
+    def blurred(self, sigma_r: float, sigma_t: float) -> CaptureModel:
+        """The model's interpolant convolved with the pose noise, on a finer grid (cached per sigmas).
+
+        The interpolant is sampled on a grid at most ``sigma / 2`` apart (and at least :data:`REFINE` times finer
+        than the model's), extended beyond the u, v edges by the kernel's reach (``4 sigma_t`` plus one step,
+        where it is 0), and convolved axis by axis with sampled Gaussians (``scipy.ndimage.gaussian_filter1d``:
+        periodic in theta, zero beyond the u, v edges). With both sigmas 0 it is the model itself."""
+        key = (float(sigma_r), float(sigma_t))
+        cached = self._blur.get(key)
+        if cached is not None:
+            return cached
+        if sigma_r <= 0 and sigma_t <= 0:
+            self._blur[key] = self
+            return self
+        from scipy.ndimage import gaussian_filter1d
+
+        d_theta = THETA_PERIOD / len(self.theta)
+        n_t = len(self.theta) * max(REFINE, math.ceil(2 * d_theta / sigma_r) if sigma_r > 0 else REFINE)
+        th = theta_axis(n_t)
+
+        def fine(axis: FloatArray) -> FloatArray:
+            step = float(axis[1] - axis[0])
+            k = max(REFINE, math.ceil(2 * step / sigma_t) if sigma_t > 0 else REFINE)
+            reach = step + 4.0 * sigma_t
+            n_out = math.ceil(reach / (step / k))
+            return np.asarray(axis[0] + step / k * np.arange(-n_out, (len(axis) - 1) * k + n_out + 1))
+
+        uu, vv = fine(self.u), fine(self.v)
+        T, U, V = np.meshgrid(th, uu, vv, indexing="ij")
+        values = self.probability(T, U, V)
+        if sigma_r > 0:
+            values = gaussian_filter1d(values, sigma_r / (th[1] - th[0]), axis=0, mode="wrap", truncate=4.0)
+        if sigma_t > 0:
+            values = gaussian_filter1d(values, sigma_t / (uu[1] - uu[0]), axis=1, mode="constant", truncate=4.0)
+            values = gaussian_filter1d(values, sigma_t / (vv[1] - vv[0]), axis=2, mode="constant", truncate=4.0)
+        out = CaptureModel(th, uu, vv, np.clip(values, 0.0, 1.0), {"blurred": {"sigma_r": key[0], "sigma_t": key[1]}})
+        self._blur[key] = out
+        return out
 
     # ---------------------------------------------------------------------------------------------------
 
