@@ -51,7 +51,7 @@ def test_a_campaign_runs_r_with_the_stored_capture_model(tmp_path: Path) -> None
         seed=3,
     )  # fmt: skip
     th, u = theta_axis(6), uniform_axis(0.03, 0.01)
-    T, U, V = np.meshgrid(th, u, u, indexing="ij")
+    T, _, V = np.meshgrid(th, u, u, indexing="ij")
     model = CaptureModel(th, u, u, ((np.abs(T) < 0.1) & (np.abs(V) <= 0.01)).astype(float), {"note": "given"})
     (tmp_path / "capture").mkdir()
     (tmp_path / "capture" / "box.json").write_text(json.dumps(model.to_json_dict()))
