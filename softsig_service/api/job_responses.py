@@ -1,5 +1,6 @@
 """What the job routes answer: a job's JSON, ``202 Accepted`` with its location, and the submission of a
-stiffness-signature job (shared by ``/v1/jobs`` and the signature routes, so that no route imports another).
+stiffness-signature or capture-model job (shared by ``/v1/jobs`` and the signature routes, so that no route
+imports another).
 """
 
 from __future__ import annotations
@@ -10,7 +11,8 @@ from fastapi.responses import JSONResponse
 
 from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
-from softsig_service.api.schemas import JobOut, StiffnessSignatureIn
+from softsig_service.api.schemas import CaptureSignatureIn, JobOut, StiffnessSignatureIn
+from softsig_service.errors import InvalidInput
 from softsig_service.objects.schema import object_json
 
 
@@ -39,6 +41,31 @@ def accepted(rec: repo.JobRecord) -> JSONResponse:
     """``202 Accepted`` with ``Location: /v1/jobs/{id}`` and the job."""
     body = JobOut.model_validate(job_out(rec)).model_dump(mode="json")
     return JSONResponse(body, status_code=202, headers={"Location": f"/v1/jobs/{rec.id}"})
+
+
+async def capture_signature_version(
+    ctx: AppContext, hand: repo.HandRecord, body: CaptureSignatureIn, if_match: str | None
+) -> repo.JobRecord:
+    """Submit the capture-model job of ``hand`` (stored as a new version when it succeeds); bad grids and objects
+    are refused now, naming the field."""
+    from softsig_service.experiments.capture import CaptureGrid
+    from softsig_service.objects import object_from_json
+
+    grid = {k: getattr(body, k) for k in ("n_theta", "half_width", "step", "holdout", "seed")}
+    CaptureGrid(**grid)
+    obj = object_json(body.object)
+    object_from_json(obj)
+    n = grid["n_theta"] * (2 * round(grid["half_width"] / grid["step"]) + 1) ** 2 + grid["holdout"]
+    if n > ctx.settings.max_job_trials:
+        raise InvalidInput(
+            f"the capture model asks for {n} simulations; the service allows at most {ctx.settings.max_job_trials}",
+            field="n_theta", value=n,
+        )  # fmt: skip
+    params: dict[str, Any] = {"hand": hand.name, "object": obj, "grid": grid, "hand_revision": hand.revision}
+    if if_match is not None:
+        params["if_match"] = if_match
+    private = {"hand_ref": hand.manifest_path, "workers": ctx.settings.job_workers}
+    return await ctx.jobs.submit("capture_signature", params, private=private)
 
 
 async def stiffness_signature_version(

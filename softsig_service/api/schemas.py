@@ -162,14 +162,28 @@ class StiffnessSignatureIn(Strict):
     object: ObjectSpec
 
 
+class CaptureSignatureIn(Strict):
+    """Compute the capture model of strategy R: grasp ``object`` in MuJoCo at ``n_theta`` relative yaws x offsets
+    ``-half_width .. half_width`` [m] in steps of ``step`` [m] along both hand axes, plus ``holdout`` random
+    checks of the model (docs/planning.md, strategy R)."""
+
+    object: ObjectSpec
+    n_theta: int = Field(12, ge=2, le=72, strict=True, description="relative yaws over a half turn")
+    half_width: float = Field(0.03, gt=0.0, le=0.1, strict=True, description="largest offset [m]")
+    step: float = Field(0.01, gt=0.0, le=0.1, strict=True, description="offset step [m], at most half_width")
+    holdout: int = Field(60, ge=0, le=10_000, strict=True, description="held-out simulations at random poses")
+    seed: int = Field(0, ge=0, le=2**32 - 1, strict=True, description="seed of the held-out poses")
+
+
 class SignatureSummary(Out):
     """One stored signature version. Closure signatures: ``cs_method`` and ``cs_criterion`` (the ellipsoid
     method's criterion, "absolute": deltas in metres, "relative": dimensionless; null for pca and mesh).
-    Stiffness signatures: ``object``, the name of the object grasped (``cs_method`` and ``cs_criterion`` null)."""
+    Stiffness signatures and capture models: ``object``, the name of the object grasped (``cs_method`` and
+    ``cs_criterion`` null)."""
 
     hand: str
     version: int
-    kind: Literal["closure", "stiffness"] | str
+    kind: Literal["closure", "stiffness", "capture"] | str
     cs_method: CsMethod | None = None
     cs_criterion: ClosureCriterion | None = None
     object: str | None = None
@@ -202,12 +216,20 @@ class SignatureList(Out):
 
 
 class PlanIn(Strict):
-    """A top-grasp request (docs/design.md §6): hand, object on the table, strategy S (bounding box) or C (closure
-    signature), the UR5's current joints ``current_q`` [rad] (default: home)."""
+    """A top-grasp request (docs/design.md §6): hand, object on the table, strategy S (bounding box), C (closure
+    signature) or R (robust to the stated pose uncertainty ``sigma_r``, ``sigma_t``, with the hand's capture
+    model on this object: ``capture_version``, or the newest capture signature of the hand for an object of the
+    same shape, size, mass and friction), the UR5's current joints ``current_q`` [rad] (default: home)."""
 
     hand: HandName
     object: ObjectSpec
-    strategy: Literal["S", "C"]
+    strategy: Literal["S", "C", "R"]
+    sigma_r: float = Field(0.0, ge=0.0, le=1.0, strict=True, description="std. dev. of the object's yaw [rad] (R)")
+    sigma_t: float = Field(0.0, ge=0.0, le=1.0, strict=True, description="std. dev. of its x and y [m] (R)")
+    capture_version: int | None = Field(
+        None, ge=1, strict=True, description="signature version of the capture model R uses (default: the newest "
+        "for this object)",
+    )  # fmt: skip
     current_q: tuple[JointAngle, JointAngle, JointAngle, JointAngle, JointAngle, JointAngle] | None = None
     closing_axis: Literal["minor", "major"] = Field("minor", description="object axis the CS closes across (C)")
     approach_distance: float = Field(

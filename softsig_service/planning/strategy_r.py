@@ -100,11 +100,16 @@ def _digest(model: CaptureModel) -> str:
     return hashlib.sha256(payload.encode()).hexdigest()
 
 
+def _degree(samples: NDArray[np.float64]) -> int:
+    """Cubic where there are enough samples (a B-spline of degree d needs d + 1 control points)."""
+    return min(3, len(samples) - 1)
+
+
 def _clamped_knots(samples: NDArray[np.float64]) -> list[float]:
-    """Knots of a clamped cubic B-spline with one control point per sample, spanning the samples."""
-    n = len(samples)
-    inner = np.linspace(samples[0], samples[-1], max(n - 2, 2))
-    return [float(samples[0])] * 3 + inner.tolist() + [float(samples[-1])] * 3
+    """Knots of a clamped B-spline of degree :func:`_degree` with one control point per sample, spanning them."""
+    n, d = len(samples), _degree(samples)
+    inner = np.linspace(samples[0], samples[-1], n - d + 1)
+    return [float(samples[0])] * d + inner.tolist() + [float(samples[-1])] * d
 
 
 @functools.lru_cache(maxsize=64)
@@ -122,9 +127,10 @@ def _problem(
     E = blurred.values[::st, ::su, ::sv]
     th3 = np.concatenate([th - THETA_PERIOD, th, th + THETA_PERIOD])
     E3 = np.concatenate([E] * 3, axis=0)
-    # a cubic B-spline whose control points are the samples (a smoothing approximation, built without a fit)
+    # a B-spline whose control points are the samples (a smoothing approximation, built without a fit)
     knots = [_clamped_knots(a) for a in (th3, uu, vv)]
-    surrogate = ca.Function.bspline("capture", knots, E3.ravel(order="F").tolist(), [3, 3, 3], 1, {})
+    degrees = [_degree(a) for a in (th3, uu, vv)]
+    surrogate = ca.Function.bspline("capture", knots, E3.ravel(order="F").tolist(), degrees, 1, {})
     x = ca.MX.sym("x", 3)
     p = ca.MX.sym("p", 1)  # theta_C
     f = -surrogate(x) + TIE_WEIGHT * ((x[0] - p[0]) ** 2 + (x[1] ** 2 + x[2] ** 2) / OFFSET_SCALE**2)

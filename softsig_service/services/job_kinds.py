@@ -1,5 +1,5 @@
-"""The kinds of jobs the service runs, the work the API and the CLI share: stiffness signatures (stored as a new
-signature version when the job succeeds), validations in MuJoCo and the reference experiment.
+"""The kinds of jobs the service runs, the work the API and the CLI share: stiffness signatures and capture models
+(stored as a new signature version when the job succeeds), validations in MuJoCo and the reference experiment.
 """
 
 from __future__ import annotations
@@ -16,14 +16,25 @@ from softsig_service.services.tasks import inspect_hand
 
 def store_stiffness_signature(registry: Registry, params: dict[str, Any], result: dict[str, Any]) -> dict[str, Any]:
     """Store a finished stiffness signature as a new version of the hand (the job's ``on_result`` hook)."""
+    return _store(registry, params, result, "stiffness", {"object": params["object"]})
+
+
+def store_capture_signature(registry: Registry, params: dict[str, Any], result: dict[str, Any]) -> dict[str, Any]:
+    """Store a finished capture model as a new signature version of the hand (the job's ``on_result`` hook)."""
+    return _store(registry, params, result, "capture", {"object": params["object"], "grid": params["grid"]})
+
+
+def _store(
+    registry: Registry, params: dict[str, Any], result: dict[str, Any], kind: str, stored: dict[str, Any]
+) -> dict[str, Any]:
     rec = repo.add_signature(
         registry,
         params["hand"],
-        kind="stiffness",
+        kind=kind,
         method=str(params["object"].get("name") or params["object"].get("kind")),
         source="simulation",
         data=result["signature"],
-        params={"object": params["object"]},
+        params=stored,
         hand_revision=params.get("hand_revision"),
         if_match=params.get("if_match"),
     )
@@ -43,6 +54,13 @@ def default_job_kinds() -> dict[str, JobKind]:
             "softsig_service.services.tasks:run_stiffness_signature",
             "grasp an object in MuJoCo: 6x6 stiffness and break forces; stored as a signature version",
             on_result=store_stiffness_signature,
+        ),
+        JobKind(
+            "capture_signature",
+            "softsig_service.services.tasks:run_capture_signature",
+            "grasp simulations over relative poses of an object: the capture model of strategy R; stored as a "
+            "signature version",
+            on_result=store_capture_signature,
         ),
         JobKind(
             "validation",

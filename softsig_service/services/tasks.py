@@ -98,6 +98,31 @@ def run_stiffness_signature(params: dict[str, Any], ctx: JobContext) -> dict[str
     return {"signature": data}
 
 
+def run_capture_signature(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
+    """The capture model of a hand on an object (strategy R; :mod:`softsig_service.experiments.capture`): grasp
+    simulations over a grid of relative poses plus held-out checks, in ``workers`` processes.
+
+    ``params``: ``hand_ref`` (manifest path), ``object`` (object JSON), ``grid`` (``n_theta``, ``half_width``
+    [m], ``step`` [m], ``holdout``, ``seed``), ``workers``. Writes ``capture_model.json`` into the job's folder.
+    """
+    import json
+
+    from softsig_service.experiments.capture import CaptureGrid, build_capture_model
+
+    grid = CaptureGrid(**params["grid"])
+
+    def progress(done: int, of: int) -> None:
+        ctx.progress(done / of if of else 1.0, f"{done} of {of} simulations")
+
+    model = build_capture_model(
+        str(params["hand_ref"]), params["object"], grid, workers=int(params.get("workers") or 1), progress=progress
+    )
+    data = to_jsonable(model.to_json_dict())
+    ctx.out_dir.mkdir(parents=True, exist_ok=True)
+    (ctx.out_dir / "capture_model.json").write_text(json.dumps(data) + "\n", encoding="utf-8")
+    return {"signature": data}
+
+
 def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     """Validate a plan in MuJoCo (docs/design.md §7): ``trials`` rollouts of :func:`~softsig_service.simulation.rollout.
     run_trial` (plan on the nominal pose, object perturbed by yaw ~ N(0, sigma_r^2) [rad], x, y ~ N(0, sigma_t^2)

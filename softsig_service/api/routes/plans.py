@@ -8,6 +8,8 @@ machine-readable ``reasons``.
 
 from __future__ import annotations
 
+import functools
+import json
 import os
 import uuid
 from typing import Annotated, Any
@@ -20,10 +22,11 @@ from softsig_service.api.context import AppContext
 from softsig_service.api.deps import Ctx, ReadAccess, WriteAccess
 from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, WRITE, Limit, Offset, problem
 from softsig_service.api.schemas import HAND_NAME_PATTERN, PlanIn, PlanList, PlanOut
-from softsig_service.errors import HandNotFound, InvalidInput
+from softsig_service.errors import HandNotFound, InvalidInput, NotFound
 from softsig_service.objects.schema import object_json
 from softsig_service.services.plan_image import render_plan_png
 from softsig_service.services.serialize import to_jsonable, vectors_as_objects
+from softsig_service.signatures.capture import CaptureModel
 
 router = APIRouter(prefix="/v1", tags=["plans"])
 PlanId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="a stored plan's id")]
@@ -53,13 +56,62 @@ async def _ensure_planning_model(ctx: AppContext, hand: repo.HandRecord, body: P
         remember_planning_model(model, *key)
 
 
+def _without_pose(obj: dict[str, Any]) -> dict[str, Any]:
+    """The object's JSON in one form (built-in names resolved), without its pose and name."""
+    from softsig_service.objects import object_from_json
+
+    try:
+        norm = object_from_json(obj).to_json()
+    except InvalidInput:
+        return {}
+    return {k: v for k, v in norm.items() if k not in ("pose", "name")}
+
+
+def capture_model(ctx: AppContext, hand: str, obj: dict[str, Any], version: int | None) -> CaptureModel:
+    """The capture model strategy R plans with: signature ``version`` of ``hand`` (which must be a capture model
+    of an object of this shape, size, mass and friction), or the newest such one. :class:`InvalidInput` naming
+    ``capture_version`` when there is none."""
+    wanted = _without_pose(obj)
+    if version is not None:
+        try:
+            rec = repo.get_signature(ctx.registry, hand, version)
+        except NotFound:
+            raise InvalidInput("no such signature version", field="capture_version", value=version) from None
+        if rec.kind != "capture" or _without_pose(rec.params.get("object", {})) != wanted:
+            raise InvalidInput(
+                "not a capture model of this object (shape, size, mass and friction must match)",
+                field="capture_version", value=version,
+            )  # fmt: skip
+    else:
+        records, _ = repo.list_signatures(ctx.registry, hand, kind="capture", limit=1000)
+        found = [r for r in records if _without_pose(r.params.get("object", {})) == wanted]
+        if not found:
+            raise InvalidInput(
+                "strategy R needs the hand's capture model on this object: POST "
+                f"/v1/hands/{hand}/signatures/capture with it first", field="capture_version",
+            )  # fmt: skip
+        rec = found[0]
+    return _capture_from_record(rec.hand, rec.version, rec.etag, rec.data)
+
+
+@functools.lru_cache(maxsize=32)
+def _capture_cached(key: str, data_json: str) -> CaptureModel:
+    return CaptureModel.from_json_dict(json.loads(data_json))
+
+
+def _capture_from_record(hand: str, version: int, etag: str, data: dict[str, Any]) -> CaptureModel:
+    return _capture_cached(f"{hand}/{version}/{etag}", json.dumps(data, sort_keys=True))
+
+
 def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRecord | None = None) -> dict[str, Any]:
     """Plan ``body`` with the app's planner and store it (unless ``store`` is false); the plan JSON."""
     from softsig_service.objects import object_from_json
     from softsig_service.planning.planner import PlanRequest
 
     hand = hand or _plan_hand(ctx, body)
-    obj = object_from_json(object_json(body.object))
+    obj_json = object_json(body.object)
+    obj = object_from_json(obj_json)
+    capture = capture_model(ctx, hand.name, obj.to_json(), body.capture_version) if body.strategy == "R" else None
     request = PlanRequest(
         hand=hand.manifest_path,
         obj=obj,
@@ -71,6 +123,9 @@ def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRecord | None = None
         cs_method=body.cs_method,
         cs_criterion=body.cs_criterion,
         placement=body.placement,
+        sigma_r=body.sigma_r,
+        sigma_t=body.sigma_t,
+        capture=capture,
     )
     plan = ctx.planner.plan(request)  # thread-safe: per-thread solvers and collision worlds, no lock
     ctx.metrics.plan_seconds.labels(body.strategy).observe(plan.timing.get("total", 0.0))

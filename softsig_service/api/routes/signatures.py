@@ -17,11 +17,12 @@ from starlette.concurrency import run_in_threadpool
 
 from softsig_service import registry as repo
 from softsig_service.api.deps import Ctx, IfMatchOptional, ReadAccess, WriteAccess
-from softsig_service.api.job_responses import accepted, stiffness_signature_version
+from softsig_service.api.job_responses import accepted, capture_signature_version, stiffness_signature_version
 from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, SUBMIT_JOB, WRITE, Limit, Offset, problem
 from softsig_service.api.schemas import (
     CRITERION_DESCRIPTION,
     HAND_NAME_PATTERN,
+    CaptureSignatureIn,
     ClosureCriterion,
     ClosureSignatureIn,
     CsMethod,
@@ -35,7 +36,7 @@ from softsig_service.services.tasks import closure_signature, markers_signature
 
 router = APIRouter(prefix="/v1", tags=["signatures"])
 HandPath = Annotated[str, Path(pattern=HAND_NAME_PATTERN, description="the hand's name")]
-KindQuery = Annotated[Literal["closure", "stiffness"] | None, Query(description="only this kind")]
+KindQuery = Annotated[Literal["closure", "stiffness", "capture"] | None, Query(description="only this kind")]
 
 
 def signature_summary(rec: repo.SignatureRecord) -> dict[str, Any]:
@@ -46,7 +47,7 @@ def signature_summary(rec: repo.SignatureRecord) -> dict[str, Any]:
         "kind": rec.kind,
         "cs_method": rec.method if rec.kind == "closure" else None,
         "cs_criterion": rec.criterion,
-        "object": rec.method if rec.kind == "stiffness" else None,
+        "object": rec.method if rec.kind in ("stiffness", "capture") else None,
         "source": rec.source,
         "hand_revision": rec.hand_revision,
         "etag": rec.etag,
@@ -128,6 +129,22 @@ async def create_stiffness_signature(
     stored."""
     record = await run_in_threadpool(ctx.hand, hand)
     job = await stiffness_signature_version(ctx, record, body, if_match)
+    return accepted(job)
+
+
+@router.post(
+    "/hands/{hand}/signatures/capture",
+    **{**SUBMIT_JOB, "responses": {404: problem("unknown hand"), **SUBMIT_JOB["responses"]}},
+    summary="Compute the capture model of strategy R (a job); stored as a new version when it succeeds",
+)
+async def create_capture_signature(
+    ctx: Ctx, hand: HandPath, if_match: IfMatchOptional, body: CaptureSignatureIn
+) -> JSONResponse:
+    """Grasp ``object`` in MuJoCo over a grid of relative poses (``n_theta`` yaws x offsets) plus held-out
+    checks: the hand's capture model on this object, which strategy R plans with. 202 with the job; the model is
+    stored as the hand's next version (kind ``capture``) when the job succeeds."""
+    record = await run_in_threadpool(ctx.hand, hand)
+    job = await capture_signature_version(ctx, record, body, if_match)
     return accepted(job)
 
 
