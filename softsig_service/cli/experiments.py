@@ -19,7 +19,15 @@ from typing import Annotated, Any
 
 import typer
 
-from softsig_service.cli.options import CriterionOption, CsMethodOption, PlacementOption, parse_object, plan_options
+from softsig_service.cli.options import (
+    CaptureOption,
+    CriterionOption,
+    CsMethodOption,
+    PlacementOption,
+    parse_object,
+    plan_options,
+    read_capture,
+)
 from softsig_service.cli.options import errors_to_exit as _errors
 from softsig_service.errors import InvalidInput, RenderUnavailable
 
@@ -101,7 +109,9 @@ def validate(
     x: Annotated[float, typer.Option("--x", help="nominal object centre x in base_link [m]")] = 0.5,
     y: Annotated[float, typer.Option("--y", help="nominal object centre y in base_link [m]")] = 0.0,
     yaw: Annotated[float, typer.Option("--yaw", help="nominal object yaw about world z [rad]")] = 0.0,
-    strategy: Annotated[str, typer.Option("--strategy", help="S (bounding box) | C (closure signature)")] = "C",
+    strategy: Annotated[
+        str, typer.Option("--strategy", help="S (bounding box) | C (closure signature) | R (robust; needs --capture)")
+    ] = "C",
     sigma_r: Annotated[float, typer.Option("--sigma-r", help="std. dev. of the object's yaw offset [rad]")] = 0.0,
     sigma_t: Annotated[float, typer.Option("--sigma-t", help="std. dev. of its x and y offsets [m]")] = 0.0,
     trials: Annotated[int, typer.Option("--trials", help="number of trials", min=1, max=100_000)] = 1,
@@ -113,8 +123,10 @@ def validate(
     cs_method: CsMethodOption = "ellipsoid",
     criterion: CriterionOption = "absolute",
     placement: PlacementOption = "open_centre",
+    capture: CaptureOption = None,
 ) -> None:
-    """Plan a top grasp on the nominal object pose and simulate it in MuJoCo, under pose noise if asked."""
+    """Plan a top grasp on the nominal object pose and simulate it in MuJoCo, under pose noise if asked (strategy R
+    plans for that noise)."""
     with _errors():
         from softsig_service.experiments.campaign_spec import trial_seed
         from softsig_service.experiments.trial import run_trial
@@ -123,6 +135,10 @@ def validate(
         if strategy not in STRATEGIES:
             raise InvalidInput("unknown strategy", field="strategy", value=strategy, choices=STRATEGIES)
         nominal = parse_object(obj, x, y, yaw)
+        options: dict[str, Any] = dict(plan_options(cs_method, criterion, placement))
+        model = read_capture(capture)
+        if model is not None:
+            options["capture"] = model
         recorder = _Recorder(frames, video, fps) if (frames is not None or video is not None) else None
         results = []
         try:
@@ -136,7 +152,7 @@ def validate(
                     sigma_t=sigma_t,
                     on_frame=recorder,
                     frame_period=1.0 / fps,
-                    plan_options=plan_options(cs_method, criterion, placement),
+                    plan_options=options,
                 )
                 results.append(result)
                 if recorder is not None:

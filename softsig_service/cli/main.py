@@ -9,7 +9,15 @@ import typer
 
 from softsig_service.cli.experiments import experiment_app, validate
 from softsig_service.cli.hands import hands_app
-from softsig_service.cli.options import CriterionOption, CsMethodOption, PlacementOption, parse_floats, plan_options
+from softsig_service.cli.options import (
+    CaptureOption,
+    CriterionOption,
+    CsMethodOption,
+    PlacementOption,
+    parse_floats,
+    plan_options,
+    read_capture,
+)
 from softsig_service.cli.options import emit as _emit
 from softsig_service.cli.options import errors_to_exit as _errors
 from softsig_service.cli.options import parse_object as _object_arg
@@ -34,7 +42,9 @@ def plan(
     x: Annotated[float, typer.Option("--x", help="object centre x in base_link [m]")] = 0.5,
     y: Annotated[float, typer.Option("--y", help="object centre y in base_link [m]")] = 0.0,
     yaw: Annotated[float, typer.Option("--yaw", help="object yaw about world z [rad]")] = 0.0,
-    strategy: Annotated[str, typer.Option("--strategy", help="S (bounding box) | C (closure signature)")] = "C",
+    strategy: Annotated[
+        str, typer.Option("--strategy", help="S (bounding box) | C (closure signature) | R (robust; needs --capture)")
+    ] = "C",
     current_q: Annotated[
         str | None, typer.Option("--current-q", help="current UR5 joints q1,...,q6 [rad] (default: home)")
     ] = None,
@@ -42,16 +52,21 @@ def plan(
     cs_method: CsMethodOption = "ellipsoid",
     criterion: CriterionOption = "absolute",
     placement: PlacementOption = "open_centre",
+    sigma_r: Annotated[float, typer.Option("--sigma-r", help="std. dev. of the object's yaw [rad] (R)")] = 0.0,
+    sigma_t: Annotated[float, typer.Option("--sigma-t", help="std. dev. of its x and y [m] (R)")] = 0.0,
+    capture: CaptureOption = None,
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
 ) -> None:
-    """Plan a UR5 top grasp of an object on the table with strategy S or C."""
+    """Plan a UR5 top grasp of an object on the table with strategy S, C or R."""
     from softsig_service.planning.planner import Planner, PlanRequest
 
     with _errors():
         q = parse_floats(current_q, 6, "current_q") if current_q is not None else None
+        model = read_capture(capture)
         request = PlanRequest(
             hand=hand, obj=_object_arg(obj, x, y, yaw), strategy=strategy,  # type: ignore[arg-type]
             current_q=q, closing_axis=closing_axis,  # type: ignore[arg-type]
+            sigma_r=sigma_r, sigma_t=sigma_t, capture=model,
             **plan_options(cs_method, criterion, placement),  # type: ignore[arg-type]
         )  # fmt: skip
         result = Planner().plan(request)
@@ -68,6 +83,8 @@ def plan(
             qual = result.quality
             if qual["alignment_error"] is not None:
                 lines.append(f"  alignment error {qual['alignment_error']:.2e} rad, clearance {qual['clearance']}")
+            if qual.get("expected_capture") is not None:
+                lines.append(f"  expected capture under the stated noise {qual['expected_capture']:.3f}")
             lines.append(f"  time {result.timing['total'] * 1e3:.1f} ms")
             return "\n".join(lines)
 

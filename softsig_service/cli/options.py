@@ -65,6 +65,24 @@ def plan_options(cs_method: str, criterion: str, placement: str) -> dict[str, st
     return {"cs_method": cs_method, "cs_criterion": criterion, "placement": placement}
 
 
+CaptureOption = Annotated[
+    Path | None, typer.Option("--capture", help="capture model JSON (softsig signature capture) for strategy R")
+]
+
+
+def read_capture(path: Path | None) -> Any:
+    """The :class:`~softsig_service.signatures.capture.CaptureModel` in ``path`` (None without a path);
+    :class:`InvalidInput` naming ``capture`` when it cannot be read."""
+    if path is None:
+        return None
+    from softsig_service.signatures.capture import CaptureModel
+
+    try:
+        return CaptureModel.from_json_dict(json.loads(path.read_text(encoding="utf-8")))
+    except (OSError, ValueError) as exc:
+        raise InvalidInput(f"cannot read the capture model: {exc}", field="capture", value=str(path)) from None
+
+
 def write_json(path: Path, data: Any) -> None:
     """Write ``data`` as one line of JSON to ``path`` (parent folders made)."""
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -143,3 +143,38 @@ def _stiffness_object(spec: str) -> Any:
             raise InvalidInput("sphere:R needs a radius in metres", field="object", value=spec) from None
         return sphere(radius, mass=0.1)
     return _object_arg(spec, 0.5, 0.0, 0.0)
+
+
+@signature_app.command("capture")
+def signature_capture(
+    hand: Annotated[str, typer.Argument(help="built-in name or path to hand.toml")],
+    out: Annotated[Path, typer.Option("--out", help="JSON file to write the capture model into")],
+    obj: Annotated[str, typer.Option("--object", help="box | apple | cylinder | PATH.json")] = "box",
+    n_theta: Annotated[int, typer.Option("--n-theta", help="relative yaws over a half turn", min=2, max=72)] = 12,
+    half_width: Annotated[float, typer.Option("--half-width", help="largest offset [m]")] = 0.03,
+    step: Annotated[float, typer.Option("--step", help="offset step [m]")] = 0.01,
+    holdout: Annotated[int, typer.Option("--holdout", help="held-out simulations", min=0)] = 60,
+    workers: Annotated[int, typer.Option("--workers", help="worker processes", min=1)] = 1,
+    as_json: Annotated[bool, typer.Option("--json", help="print the model's summary as JSON")] = False,
+) -> None:
+    """The capture model of strategy R: grasp simulations of the object over relative poses of the hand."""
+    import json
+
+    from softsig_service.experiments.capture import CaptureGrid, build_capture_model
+
+    with _errors():
+        grid = CaptureGrid(n_theta=n_theta, half_width=half_width, step=step, holdout=holdout)
+        the_obj = _object_arg(obj, 0.5, 0.0, 0.0)
+        model = build_capture_model(hand, the_obj.to_json(), grid, workers=workers)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(model.to_json_dict()) + "\n", encoding="utf-8")
+        summary = {k: model.meta[k] for k in ("simulations", "seconds", "carried_fraction", "holdout_agreement")}
+
+        def text() -> str:
+            return (
+                f"{hand} on {the_obj.name or the_obj.kind}: {summary['simulations']} simulations in "
+                f"{summary['seconds']:.0f} s; carried in {summary['carried_fraction']:.0%} of the grid; the model "
+                f"predicts {summary['holdout_agreement']:.0%} of the held-out outcomes; wrote {out}"
+            )
+
+        _emit({**summary, "file": str(out)}, as_json, text)
