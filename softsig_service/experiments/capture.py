@@ -51,7 +51,7 @@ class CaptureGrid:
             raise InvalidInput("must be within [0, 10000]", field="holdout", value=self.holdout)
 
 
-def _simulate_yaw(
+def simulate_relative_yaw(
     hand: str, obj_json: dict[str, Any], theta: float, offsets: list[tuple[float, float]], plan_options: dict[str, Any]
 ) -> list[CaptureSample]:
     """One yaw: plan the hand at ``(theta, 0, 0)`` once, then roll out each object offset ``(u, v)``."""
@@ -118,11 +118,11 @@ def build_capture_model(
 
     if workers <= 1:
         for theta, offs, is_holdout in tasks:
-            collect(_simulate_yaw(hand, obj_json, theta, offs, options), is_holdout)
+            collect(simulate_relative_yaw(hand, obj_json, theta, offs, options), is_holdout)
     else:
         with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as pool:
             futures = {
-                pool.submit(_simulate_yaw, hand, obj_json, theta, offs, options): is_holdout
+                pool.submit(simulate_relative_yaw, hand, obj_json, theta, offs, options): is_holdout
                 for theta, offs, is_holdout in tasks
             }
             for f in as_completed(futures):

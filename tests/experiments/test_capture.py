@@ -12,7 +12,7 @@ import pytest
 from softsig_service.errors import InvalidInput
 from softsig_service.experiments.campaign import run_campaign
 from softsig_service.experiments.campaign_spec import CampaignSpec
-from softsig_service.experiments.capture import CaptureGrid, _simulate_yaw
+from softsig_service.experiments.capture import CaptureGrid, simulate_relative_yaw
 from softsig_service.objects import builtin_object
 from softsig_service.signatures.capture import CaptureModel, theta_axis, uniform_axis
 
@@ -27,12 +27,14 @@ def test_the_grippers_capture_of_a_box_follows_its_jaws() -> None:
     clearance = JAW_HALF_OPENING - BOX_HALF_WIDTH
     inside = [(0.0, 0.0), (0.0, clearance - 0.0025), (0.0, -(clearance - 0.0025)), (0.04, 0.0), (-0.04, 0.0)]
     beyond = [(0.0, JAW_HALF_OPENING + 0.005), (0.0, -(JAW_HALF_OPENING + 0.005))]
-    samples = _simulate_yaw("parallel_gripper", builtin_object("box").to_json(), 0.0, inside + beyond, {})
+    samples = simulate_relative_yaw("parallel_gripper", builtin_object("box").to_json(), 0.0, inside + beyond, {})
     carried = {(u, v): c for _, u, v, c in samples}
     assert all(carried[o] for o in inside), carried
     assert not any(carried[o] for o in beyond), carried
     # across the jaws the box (0.16 m long) does not fit the 85 mm stroke
-    turned = _simulate_yaw("parallel_gripper", builtin_object("box").to_json(), np.pi / 2 - 1e-9, [(0.0, 0.0)], {})
+    turned = simulate_relative_yaw(
+        "parallel_gripper", builtin_object("box").to_json(), np.pi / 2 - 1e-9, [(0.0, 0.0)], {}
+    )
     assert turned[0][3] is False
 
 
