@@ -10,6 +10,7 @@ from softsig_service.experiments.campaign import (
     run_trial_spec,
 )
 from softsig_service.experiments.campaign_spec import CampaignSpec, TrialSpec, trial_seed
+from softsig_service.experiments.capture import CaptureGrid, build_capture_model, simulate_relative_yaw
 from softsig_service.experiments.closure_plot import magnitude_label, plot_closure_signature
 from softsig_service.experiments.report import plot_summary, records_csv, report_markdown, write_report
 from softsig_service.experiments.statistics import fisher_p, summarize, wilson_interval
@@ -19,8 +20,10 @@ from softsig_service.experiments.trial import TrialResult, default_planner, run_
 __all__ = [
     "CampaignResult",
     "CampaignSpec",
+    "CaptureGrid",
     "TrialResult",
     "TrialSpec",
+    "build_capture_model",
     "default_planner",
     "default_workers",
     "fisher_p",
@@ -35,6 +38,7 @@ __all__ = [
     "run_trial",
     "run_trial_spec",
     "shift_plan",
+    "simulate_relative_yaw",
     "summarize",
     "trial_seed",
     "wilson_interval",

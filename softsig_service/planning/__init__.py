@@ -13,6 +13,7 @@ from softsig_service.planning.hand_model import (
 )
 from softsig_service.planning.planner import GraspPlan, Planner, PlanRequest
 from softsig_service.planning.strategies import axis_angle_between_lines, strategy_s_poses
+from softsig_service.planning.strategy_r import RChoice, c_relative_theta, relative_poses, solve_strategy_r
 from softsig_service.planning.wrist_pose import (
     WristPoseSolution,
     hand_rotation,
@@ -31,13 +32,17 @@ __all__ = [
     "Placement",
     "PlanRequest",
     "Planner",
+    "RChoice",
     "WristPoseSolution",
     "axis_angle_between_lines",
     "build_planning_model",
+    "c_relative_theta",
     "cached_planning_model",
     "hand_rotation",
     "planning_model",
+    "relative_poses",
     "remember_planning_model",
+    "solve_strategy_r",
     "solve_wrist_pose",
     "solve_wrist_pose_unchecked",
     "strategy_s_poses",

@@ -1,6 +1,7 @@
 """The signatures as pure math (numpy, no MuJoCo): the closure signature by three methods, the grasp-stiffness
 algebra, marker files."""
 
+from softsig_service.signatures.capture import CaptureModel, agreement, theta_axis, uniform_axis, wrap_theta
 from softsig_service.signatures.closure import (
     check_criterion,
     compute_closure_signature,
@@ -48,12 +49,14 @@ from softsig_service.signatures.stiffness_types import (
 
 __all__ = [
     "BreakForce",
+    "CaptureModel",
     "ClosureSignature",
     "ContactRecord",
     "EllipsoidAxisSeries",
     "PrincipalStiffness",
     "StiffnessSignature",
     "StiffnessTerms",
+    "agreement",
     "check_criterion",
     "checked_matrix",
     "checked_positive",
@@ -86,4 +89,7 @@ __all__ = [
     "square_matrix",
     "stiffness_ellipsoid",
     "sym",
+    "theta_axis",
+    "uniform_axis",
+    "wrap_theta",
 ]
