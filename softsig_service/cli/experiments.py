@@ -23,7 +23,10 @@ from softsig_service.cli.options import (
     CaptureOption,
     CriterionOption,
     CsMethodOption,
+    HandOption,
+    ObjectOption,
     PlacementOption,
+    StrategyOption,
     parse_object,
     plan_options,
     read_capture,
@@ -104,14 +107,12 @@ class _Recorder:
 
 
 def validate(
-    hand: Annotated[str, typer.Option("--hand", help="built-in name or path to hand.toml")],
-    obj: Annotated[str, typer.Option("--object", help="box | apple | cylinder | PATH.json")],
+    hand: HandOption,
+    obj: ObjectOption,
     x: Annotated[float, typer.Option("--x", help="nominal object centre x in base_link [m]")] = 0.5,
     y: Annotated[float, typer.Option("--y", help="nominal object centre y in base_link [m]")] = 0.0,
     yaw: Annotated[float, typer.Option("--yaw", help="nominal object yaw about world z [rad]")] = 0.0,
-    strategy: Annotated[
-        str, typer.Option("--strategy", help="S (bounding box) | C (closure signature) | R (robust; needs --capture)")
-    ] = "C",
+    strategy: StrategyOption = "C",
     sigma_r: Annotated[float, typer.Option("--sigma-r", help="std. dev. of the object's yaw offset [rad]")] = 0.0,
     sigma_t: Annotated[float, typer.Option("--sigma-t", help="std. dev. of its x and y offsets [m]")] = 0.0,
     trials: Annotated[int, typer.Option("--trials", help="number of trials", min=1, max=100_000)] = 1,

@@ -13,7 +13,10 @@ from softsig_service.cli.options import (
     CaptureOption,
     CriterionOption,
     CsMethodOption,
+    HandOption,
+    ObjectOption,
     PlacementOption,
+    StrategyOption,
     parse_floats,
     plan_options,
     read_capture,
@@ -37,14 +40,12 @@ app.add_typer(experiment_app, name="experiment")
 
 @app.command("plan")
 def plan(
-    hand: Annotated[str, typer.Option("--hand", help="built-in name or path to hand.toml")],
-    obj: Annotated[str, typer.Option("--object", help="box | apple | cylinder | PATH.json")],
+    hand: HandOption,
+    obj: ObjectOption,
     x: Annotated[float, typer.Option("--x", help="object centre x in base_link [m]")] = 0.5,
     y: Annotated[float, typer.Option("--y", help="object centre y in base_link [m]")] = 0.0,
     yaw: Annotated[float, typer.Option("--yaw", help="object yaw about world z [rad]")] = 0.0,
-    strategy: Annotated[
-        str, typer.Option("--strategy", help="S (bounding box) | C (closure signature) | R (robust; needs --capture)")
-    ] = "C",
+    strategy: StrategyOption = "C",
     current_q: Annotated[
         str | None, typer.Option("--current-q", help="current UR5 joints q1,...,q6 [rad] (default: home)")
     ] = None,

@@ -65,6 +65,11 @@ def plan_options(cs_method: str, criterion: str, placement: str) -> dict[str, st
     return {"cs_method": cs_method, "cs_criterion": criterion, "placement": placement}
 
 
+StrategyOption = Annotated[
+    str, typer.Option("--strategy", help="S (bounding box) | C (closure signature) | R (robust; needs --capture)")
+]
+HandOption = Annotated[str, typer.Option("--hand", help="built-in name or path to hand.toml")]
+ObjectOption = Annotated[str, typer.Option("--object", help="box | apple | cylinder | PATH.json")]
 CaptureOption = Annotated[
     Path | None, typer.Option("--capture", help="capture model JSON (softsig signature capture) for strategy R")
 ]
