@@ -177,9 +177,9 @@ def service_app() -> FastAPI:
     (uvicorn's factory; each worker process calls it). The process dies with uvicorn's supervisor, so that a
     ``kill -9`` of ``softsig serve`` leaves no worker serving or running jobs (their own children follow them)."""
     from softsig_service.api.logging import configure_logging
-    from softsig_service.services.lifeline import follow_parent
+    from softsig_service.services.lifeline import die_with_parent
 
-    follow_parent()
+    die_with_parent()
 
     settings = Settings()
     configure_logging(settings.log_level)

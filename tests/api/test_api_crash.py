@@ -47,3 +47,40 @@ def test_children_die_with_the_service(tmp_path: Path) -> None:
             time.sleep(0.2)
         left = [p for p in children if pid_alive(p)]
         assert not left, [Path(f"/proc/{p}/cmdline").read_bytes() for p in left]
+
+
+def test_workers_die_with_a_killed_supervisor(tmp_path: Path) -> None:
+    """``softsig serve --workers 2``: a ``kill -9`` of the supervisor (what a container runtime does) leaves no
+    worker answering on the port, not even for a moment."""
+    import socket
+    import subprocess
+    import sys
+
+    import httpx
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    env = {**os.environ, "SOFTSIG_DATA_DIR": str(tmp_path), "SOFTSIG_WARM_PLANNER": "false"}
+    cmd = [sys.executable, "-m", "softsig_service.cli", "serve", "--workers", "2", "--port", str(port)]
+    log = (tmp_path / "serve.log").open("w")
+    proc = subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
+    url = f"http://127.0.0.1:{port}/healthz"
+    try:
+
+        def answers() -> bool:
+            try:
+                return httpx.get(url, timeout=5).status_code == 200
+            except httpx.HTTPError:
+                return False
+
+        wait_for(answers, timeout=180, poll=0.2)
+        workers = wait_for(lambda: (lambda d: d if len(d) >= 2 else None)(descendants(proc.pid)), timeout=60)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(10)
+        assert not answers(), "a worker still answers after its supervisor was killed"
+        wait_for(lambda: not any(pid_alive(p) for p in workers), timeout=15)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        log.close()
