@@ -105,6 +105,9 @@ class Settings(BaseSettings):
     warm_planner: bool = Field(True, description="build the planning models of the built-in hands at startup")
     host: str = Field("127.0.0.1", description="address softsig serve listens on")
     port: int = Field(8000, ge=0, le=65535, description="port softsig serve listens on")
+    workers: int | None = Field(
+        None, ge=1, le=64, description="service processes of softsig serve (default: every CPU it may use)"
+    )
     log_level: str = Field("info", description="log level of softsig serve (debug, info, warning, error)")
 
     @field_validator("api_keys", mode="before")

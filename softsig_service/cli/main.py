@@ -133,7 +133,8 @@ def serve(
             "--workers",
             min=1,
             max=64,
-            help="service processes sharing the port and the registry (default: every CPU this process may use)",
+            help="service processes sharing the port and the registry (default SOFTSIG_WORKERS, else every CPU this "
+            "process may use)",
         ),
     ] = None,
 ) -> None:
@@ -159,7 +160,7 @@ def serve(
             overrides["database_url"] = f"sqlite:///{db.expanduser().resolve()}"
         settings = Settings(**overrides)
         configure_logging(settings.log_level)
-        n = default_workers() if workers is None else workers
+        n = workers or settings.workers or default_workers()
         common: dict[str, Any] = {
             "host": settings.host, "port": settings.port, "log_config": None, "access_log": False,
             "timeout_graceful_shutdown": 10,
