@@ -168,14 +168,22 @@ class Claim:
 def claim_job(reg: Registry, owner: str, lease: float, *, kinds: Collection[str], max_attempts: int) -> Claim | None:
     """Claim the oldest job of one of ``kinds`` that is queued or whose lease has expired (module docstring), for
     ``owner`` with a lease of ``lease`` [s]; None when there is none. On the way, a claimable job whose
-    cancellation was requested becomes ``cancelled``, and one already claimed ``max_attempts`` times ``failed``."""
+    cancellation was requested becomes ``cancelled``, and one already claimed ``max_attempts`` times ``failed``.
+
+    An idle service asks this every ``job_poll_interval`` in every process: a read finds whether there is anything
+    to claim before a write transaction (SQLite's write lock) is taken."""
+
+    def claimable(now: datetime) -> Any:
+        expired = JobRow.lease_expires_at.is_(None) | (JobRow.lease_expires_at < now)
+        return ((JobRow.status == "queued") | ((JobRow.status == "running") & expired)) & JobRow.kind.in_(list(kinds))
+
+    with reg.read() as s:
+        if s.execute(select(JobRow.id).where(claimable(utcnow())).limit(1)).first() is None:
+            return None
     with reg.write() as s:
         while True:
             now = utcnow()
-            claimable = (JobRow.status == "queued") | (
-                (JobRow.status == "running") & (JobRow.lease_expires_at.is_(None) | (JobRow.lease_expires_at < now))
-            )
-            query = select(JobRow).where(claimable, JobRow.kind.in_(list(kinds)))
+            query = select(JobRow).where(claimable(now))
             row = s.scalars(
                 query.order_by(JobRow.created_at, JobRow.id).limit(1).with_for_update(skip_locked=True)
             ).first()
