@@ -29,5 +29,10 @@ def test_capture_model_then_r_plans_and_validations(tmp_path: Path) -> None:
     res = run("validate", *common, "--capture", str(model), "--trials", "2", "--json")
     assert res.returncode == 0, res.stderr
     assert json.loads(res.stdout)["trials"] == 2
-    res = run("plan", *common)
-    assert res.returncode == 2 and "field: capture" in res.stderr
+    # without --capture: the model shipped with a built-in hand for a built-in object, else a clear error
+    res = run("plan", *common, "--json")
+    assert res.returncode == 0 and json.loads(res.stdout)["quality"]["expected_capture"] is not None, res.stderr
+    custom = tmp_path / "box.json"
+    custom.write_text(json.dumps({"kind": "box", "size": [0.12, 0.05, 0.05], "mass": 0.1}))
+    res = run("plan", *common[:2], "--object", str(custom), *common[4:])
+    assert res.returncode == 2 and "field: capture" in res.stderr, res.stderr

@@ -137,7 +137,7 @@ def validate(
             raise InvalidInput("unknown strategy", field="strategy", value=strategy, choices=STRATEGIES)
         nominal = parse_object(obj, x, y, yaw)
         options: dict[str, Any] = dict(plan_options(cs_method, criterion, placement))
-        model = read_capture(capture)
+        model = read_capture(capture, hand=hand, obj=obj, strategy=strategy)
         if model is not None:
             options["capture"] = model
         recorder = _Recorder(frames, video, fps) if (frames is not None or video is not None) else None

@@ -63,7 +63,7 @@ def plan(
 
     with _errors():
         q = parse_floats(current_q, 6, "current_q") if current_q is not None else None
-        model = read_capture(capture)
+        model = read_capture(capture, hand=hand, obj=obj, strategy=strategy)
         request = PlanRequest(
             hand=hand, obj=_object_arg(obj, x, y, yaw), strategy=strategy,  # type: ignore[arg-type]
             current_q=q, closing_axis=closing_axis,  # type: ignore[arg-type]

@@ -71,13 +71,23 @@ StrategyOption = Annotated[
 HandOption = Annotated[str, typer.Option("--hand", help="built-in name or path to hand.toml")]
 ObjectOption = Annotated[str, typer.Option("--object", help="box | apple | cylinder | PATH.json")]
 CaptureOption = Annotated[
-    Path | None, typer.Option("--capture", help="capture model JSON (softsig signature capture) for strategy R")
+    Path | None,
+    typer.Option(
+        "--capture",
+        help="capture model JSON (softsig signature capture) for strategy R (default for a built-in hand and "
+        "object: the model shipped in hands/<name>/capture/)",
+    ),
 ]
 
 
-def read_capture(path: Path | None) -> Any:
-    """The :class:`~softsig_service.signatures.capture.CaptureModel` in ``path`` (None without a path);
+def read_capture(path: Path | None, *, hand: str = "", obj: str = "", strategy: str = "") -> Any:
+    """The :class:`~softsig_service.signatures.capture.CaptureModel` in ``path``; without a path, for strategy R on
+    a built-in object, the model shipped with the hand (``hands/<name>/capture/<object>.json``), else None.
     :class:`InvalidInput` naming ``capture`` when it cannot be read."""
+    if path is None and strategy == "R":
+        from softsig_service.experiments.capture import shipped_capture_path
+
+        path = shipped_capture_path(hand, obj)
     if path is None:
         return None
     from softsig_service.signatures.capture import CaptureModel

@@ -7,6 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
+from softsig_service.cli.options import CriterionOption, CsMethodOption, PlacementOption, plan_options
 from softsig_service.cli.options import emit as _emit
 from softsig_service.cli.options import errors_to_exit as _errors
 from softsig_service.cli.options import parse_object as _object_arg
@@ -155,9 +156,13 @@ def signature_capture(
     step: Annotated[float, typer.Option("--step", help="offset step [m]")] = 0.01,
     holdout: Annotated[int, typer.Option("--holdout", help="held-out simulations", min=0)] = 60,
     workers: Annotated[int, typer.Option("--workers", help="worker processes", min=1)] = 1,
+    cs_method: CsMethodOption = "ellipsoid",
+    criterion: CriterionOption = "absolute",
+    placement: PlacementOption = "open_centre",
     as_json: Annotated[bool, typer.Option("--json", help="print the model's summary as JSON")] = False,
 ) -> None:
-    """The capture model of strategy R: grasp simulations of the object over relative poses of the hand."""
+    """The capture model of strategy R: grasp simulations of the object over relative poses of the hand (placed
+    by the planner with these closure-signature and placement options)."""
     import json
 
     from softsig_service.experiments.capture import CaptureGrid, build_capture_model
@@ -165,7 +170,8 @@ def signature_capture(
     with _errors():
         grid = CaptureGrid(n_theta=n_theta, half_width=half_width, step=step, holdout=holdout)
         the_obj = _object_arg(obj, 0.5, 0.0, 0.0)
-        model = build_capture_model(hand, the_obj.to_json(), grid, workers=workers)
+        options = plan_options(cs_method, criterion, placement)
+        model = build_capture_model(hand, the_obj.to_json(), grid, workers=workers, plan_options=dict(options))
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(model.to_json_dict()) + "\n", encoding="utf-8")
         summary = {k: model.meta[k] for k in ("simulations", "seconds", "carried_fraction", "holdout_agreement")}

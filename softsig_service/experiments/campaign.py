@@ -91,25 +91,34 @@ def load_capture(path: str) -> CaptureModel:
 
 def ensure_capture_models(spec: CampaignSpec, out: Path, workers: int) -> dict[str, Path]:
     """For a campaign with strategy R: the capture model of the hand on each object, read from
-    ``out/capture/<object>.json`` or built now (:func:`~softsig_service.experiments.capture.build_capture_model`
-    with its default grid, at the campaign's nominal pose and placement) and written there. Object -> file."""
-    from softsig_service.experiments.capture import build_capture_model
+    ``out/capture/<object>.json``, else copied there from the hand's shipped model when it was built for the same
+    object pose, grid and plan options, else built now (:func:`~softsig_service.experiments.capture.
+    build_capture_model` with its default grid, at the campaign's nominal pose and placement). Object -> file."""
+    from softsig_service.experiments.capture import (
+        CaptureGrid,
+        build_capture_model,
+        shipped_capture_matches,
+        shipped_capture_path,
+    )
     from softsig_service.objects import builtin_object
 
     folder = out / CAPTURE_DIR
     folder.mkdir(parents=True, exist_ok=True)
+    options = {"cs_method": spec.cs_method, "cs_criterion": spec.criterion, "placement": spec.placement}
     files: dict[str, Path] = {}
     for name in spec.objects:
         path = folder / f"{name}.json"
         if not path.is_file():
-            obj = builtin_object(name, x=spec.x, y=spec.y, yaw=spec.yaw)
-            model = build_capture_model(
-                spec.hand, obj.to_json(), workers=workers,
-                plan_options={"cs_method": spec.cs_method, "cs_criterion": spec.criterion,
-                              "placement": spec.placement},
-            )  # fmt: skip
+            obj = builtin_object(name, x=spec.x, y=spec.y, yaw=spec.yaw).to_json()
+            shipped = shipped_capture_path(spec.hand, name)
+            if shipped is not None and shipped_capture_matches(shipped, obj, CaptureGrid(), options):
+                text = shipped.read_text(encoding="utf-8")
+            else:
+                text = json.dumps(
+                    build_capture_model(spec.hand, obj, workers=workers, plan_options=options).to_json_dict()
+                )
             tmp = path.with_suffix(".tmp")
-            tmp.write_text(json.dumps(model.to_json_dict()) + "\n", encoding="utf-8")
+            tmp.write_text(text.rstrip("\n") + "\n", encoding="utf-8")
             os.replace(tmp, path)
         files[name] = path
     return files

@@ -14,16 +14,19 @@ Cost: ``n_theta * (2 * half_width / step + 1)^2 + holdout`` simulations (12 x 49
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from multiprocessing import get_context
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
 from softsig_service.signatures.capture import CaptureModel, agreement, theta_axis, uniform_axis
 
@@ -78,6 +81,39 @@ def simulate_relative_yaw(
     return out
 
 
+SHIPPED_DIR = "capture"
+"""Folder of a hand (``hands/<name>/capture/<object>.json``) holding capture models built with the default grid
+for the built-in objects at the campaign's nominal pose (``softsig signature capture``, README of the hand)."""
+
+
+def shipped_capture_path(hand_ref: str, object_name: str, settings: Settings | None = None) -> Path | None:
+    """The capture model shipped with the hand ``hand_ref`` (built-in name or path to its ``hand.toml``) for the
+    built-in object ``object_name``, or None."""
+    from softsig_service.hands.model import builtin_hand_names, builtin_hands_dir
+
+    if hand_ref in builtin_hand_names(settings):
+        folder = builtin_hands_dir(settings) / hand_ref
+    elif Path(hand_ref).is_file():
+        folder = Path(hand_ref).parent
+    else:
+        return None
+    path = folder / SHIPPED_DIR / f"{object_name}.json"
+    return path if path.is_file() else None
+
+
+def shipped_capture_matches(
+    path: Path, obj_json: dict[str, Any], grid: CaptureGrid, plan_options: dict[str, Any]
+) -> bool:
+    """Whether the shipped model at ``path`` was built for this object (pose included), grid and plan options."""
+    try:
+        meta = json.loads(path.read_text(encoding="utf-8")).get("meta", {})
+    except (OSError, ValueError):
+        return False
+    return bool(
+        meta.get("object") == obj_json and meta.get("grid") == asdict(grid) and meta.get("plan_options") == plan_options
+    )
+
+
 def build_capture_model(
     hand: str,
     obj_json: dict[str, Any],
@@ -127,6 +163,8 @@ def build_capture_model(
             }
             for f in as_completed(futures):
                 collect(f.result(), futures[f])
+    order = {pose: i for i, pose in enumerate(hold)}
+    held_out.sort(key=lambda sample: order[sample[:3]])  # the draw order, whatever order the workers finished in
     values = np.zeros((len(thetas), len(us), len(us)))
     index = {round(float(t), 9): i for i, t in enumerate(thetas)}
     for theta, u, v, carried in grid_samples:

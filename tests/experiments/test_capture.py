@@ -12,7 +12,12 @@ import pytest
 from softsig_service.errors import InvalidInput
 from softsig_service.experiments.campaign import run_campaign
 from softsig_service.experiments.campaign_spec import CampaignSpec
-from softsig_service.experiments.capture import CaptureGrid, simulate_relative_yaw
+from softsig_service.experiments.capture import (
+    CaptureGrid,
+    shipped_capture_matches,
+    shipped_capture_path,
+    simulate_relative_yaw,
+)
 from softsig_service.objects import builtin_object
 from softsig_service.signatures.capture import CaptureModel, theta_axis, uniform_axis
 
@@ -66,3 +71,16 @@ def test_a_campaign_runs_r_with_the_stored_capture_model(tmp_path: Path) -> None
     assert pooled["fisher_r"]["versus"] in ("S", "C") and 0.0 <= pooled["fisher_r"]["r_greater"] <= 1.0
     report = (tmp_path / "report.md").read_text()
     assert "Strategy R against the better of S and C" in report
+
+
+def test_a_campaign_reuses_the_model_shipped_with_the_hand(tmp_path: Path) -> None:
+    spec = CampaignSpec(
+        hand="parallel_gripper", conditions=((0.1, 0.01),), objects=("box",), strategies=("R",), trials=1, seed=1
+    )
+    shipped = shipped_capture_path("parallel_gripper", "box")
+    assert shipped is not None
+    result = run_campaign(spec, tmp_path, workers=1)
+    assert result.complete and (tmp_path / "capture" / "box.json").read_text() == shipped.read_text()
+    # built for another placement it does not match, and would be built anew
+    other = {"cs_method": "ellipsoid", "cs_criterion": "absolute", "placement": "grasp_centre"}
+    assert not shipped_capture_matches(shipped, builtin_object("box").to_json(), CaptureGrid(), other)
