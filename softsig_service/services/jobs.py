@@ -83,6 +83,10 @@ def media_type(name: str) -> str:
 # ----------------------------------------------------------------------------------------------------------
 
 
+SHUTDOWN_WAIT = 15.0
+"""[s] the longest a shutdown waits for the dispatcher and for each group of job tasks to end."""
+
+
 class JobContext:
     """What a job callable gets besides its parameters: its result folder and a progress reporter."""
 
@@ -186,6 +190,7 @@ class JobManager:
         self._procs: dict[str, BaseProcess] = {}
         self._wake = asyncio.Event()
         self._dispatcher: asyncio.Task[None] | None = None
+        self._stopping = False
 
     @property
     def heartbeat(self) -> float:
@@ -262,17 +267,20 @@ class JobManager:
     async def shutdown(self) -> None:
         """Stop claiming, kill the running jobs' processes and hand their jobs back to the queue (the service's
         next start, or another of its processes, resumes them)."""
+        # the flag ends the dispatcher's loop even where a cancellation is lost (Python 3.11's asyncio.wait_for can
+        # swallow one), and every wait below is bounded: a shutdown must not hang
+        self._stopping = True
+        self._wake.set()
         if self._dispatcher is not None:
             self._dispatcher.cancel()
-            with contextlib.suppress(BaseException):
-                await self._dispatcher
+            await asyncio.wait({self._dispatcher}, timeout=SHUTDOWN_WAIT)
         for proc in list(self._procs.values()):
             await run_in_threadpool(_kill_group, proc)
-        for task in list(self._tasks.values()):
+        tasks = list(self._tasks.values())
+        for task in tasks:
             task.cancel()
-        for task in list(self._tasks.values()):
-            with contextlib.suppress(BaseException):
-                await task
+        if tasks:
+            await asyncio.wait(tasks, timeout=SHUTDOWN_WAIT)
         n = await run_in_threadpool(repo.release_jobs, self.registry, self.owner)
         if n:
             log.warning("handed %d running jobs back to the queue at shutdown", n)
@@ -280,7 +288,7 @@ class JobManager:
     async def _dispatch(self) -> None:
         """Claim jobs while a slot is free; look again when woken (a submission, a finished job) or every
         ``job_poll_interval`` (jobs queued by other processes, expired leases)."""
-        while True:
+        while not self._stopping:
             self._wake.clear()
             claim = None
             if len(self._tasks) < self.settings.job_workers:
@@ -293,7 +301,7 @@ class JobManager:
                     )  # fmt: skip
                 except Exception:  # the database is busy or away: try again later
                     log.exception("claiming a job failed")
-            if claim is not None:
+            if claim is not None and not self._stopping:  # (a claim made while stopping is handed back)
                 job_id = claim.record.id
                 self._cancel[job_id] = asyncio.Event()
                 self._tasks[job_id] = asyncio.create_task(self._run(claim))
@@ -348,6 +356,9 @@ class JobManager:
         pending: tuple[float, str] | None = None
         try:
             while outcome is None:
+                if self._stopping:  # the shutdown hands the job back to the queue: record nothing
+                    await run_in_threadpool(_kill_group, proc)
+                    return
                 while outcome is None and recv.poll():
                     try:
                         msg = recv.recv()
@@ -406,6 +417,8 @@ class JobManager:
             recv.close()
 
     async def _conclude(self, job_id: str, kind: JobKind, params: dict[str, Any], outcome: tuple[Any, ...]) -> None:
+        if self._stopping and outcome[0] != "result":  # killed by the shutdown: handed back, not failed
+            return
         if outcome[0] == "result":
             result = dict(outcome[1])
             if kind.on_result is not None:
