@@ -22,10 +22,10 @@ Coordinates: world = UR5 ``base_link``; relative pose as in :mod:`softsig_servic
 
 from __future__ import annotations
 
-import functools
 import hashlib
-import json
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
@@ -96,8 +96,11 @@ class RChoice:
 
 
 def _digest(model: CaptureModel) -> str:
-    payload = json.dumps([model.theta.tolist(), model.u.tolist(), model.v.tolist(), model.values.tolist()])
-    return hashlib.sha256(payload.encode()).hexdigest()
+    """A content key of the model's grid and values."""
+    h = hashlib.sha256()
+    for a in (model.theta, model.u, model.v, model.values):
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
 
 
 def _degree(samples: NDArray[np.float64]) -> int:
@@ -112,14 +115,31 @@ def _clamped_knots(samples: NDArray[np.float64]) -> list[float]:
     return [float(samples[0])] * d + inner.tolist() + [float(samples[-1])] * d
 
 
-@functools.lru_cache(maxsize=64)
-def _problem(
-    key: str, model_json: str, sigma_r: float, sigma_t: float
-) -> tuple[CaptureModel, ca.Function, ca.Function]:
-    """The expected capture on the model's grid (as a model), its B-spline over three periods of theta, and the
-    NLP solver on that surrogate."""
-    model = CaptureModel.from_json_dict(json.loads(model_json))
-    blurred = model.blurred(sigma_r, sigma_t)
+_LOCAL = threading.local()
+PROBLEMS_PER_THREAD = 16
+"""Surrogate solvers a thread keeps (least recently used first out)."""
+
+
+def _solver(model: CaptureModel, sigma_r: float, sigma_t: float) -> ca.Function:
+    """This thread's NLP solver on the B-spline surrogate of ``model``'s expected capture under the noise (built on
+    first use in each thread). A CasADi solver is not re-entrant (its ``stats()`` are those of the last call made
+    with it), so threads never share one, as for C's solvers (:mod:`softsig_service.planning.wrist_pose`)."""
+    cache: OrderedDict[tuple[str, float, float], ca.Function] | None = getattr(_LOCAL, "problems", None)
+    if cache is None:
+        cache = _LOCAL.problems = OrderedDict()
+    key = (_digest(model), sigma_r, sigma_t)
+    solver = cache.get(key)
+    if solver is None:
+        solver = cache[key] = _build_solver(model.blurred(sigma_r, sigma_t))
+        while len(cache) > PROBLEMS_PER_THREAD:
+            cache.popitem(last=False)
+    cache.move_to_end(key)
+    return solver
+
+
+def _build_solver(blurred: CaptureModel) -> ca.Function:
+    """IPOPT on a B-spline of the noise-averaged model ``blurred``, over three periods of theta; parameter: C's
+    relative yaw."""
     # the surrogate on at most ~SURROGATE_POINTS knots per axis (IPOPT's starting points and answers are judged
     # on the model itself, so the surrogate only has to point the way)
     st, su, sv = (max(1, math.ceil(len(a) / SURROGATE_POINTS)) for a in (blurred.theta, blurred.u, blurred.v))
@@ -136,8 +156,7 @@ def _problem(
     f = -surrogate(x) + TIE_WEIGHT * ((x[0] - p[0]) ** 2 + (x[1] ** 2 + x[2] ** 2) / OFFSET_SCALE**2)
     nlp: dict[str, Any] = {"x": x, "p": p, "f": f}
     options: dict[str, Any] = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.max_iter": 200}
-    solver = ca.nlpsol("strategy_r", "ipopt", nlp, options)
-    return blurred, surrogate, solver
+    return ca.nlpsol("strategy_r", "ipopt", nlp, options)
 
 
 SURROGATE_POINTS = 40
@@ -154,8 +173,9 @@ def solve_strategy_r(model: CaptureModel, sigma_r: float, sigma_t: float, theta_
     the interpolated expectation), and IPOPT's optima on the smooth surrogate started from both. Each is judged
     by the objective with the model's own expected capture (quadrature at that point); the best wins."""
     theta_c = float(wrap_theta(theta_c))
-    model_json = json.dumps(model.to_json_dict() | {"meta": {}})
-    blurred, _, solver = _problem(_digest(model), model_json, float(sigma_r), float(sigma_t))
+    sigma_r, sigma_t = float(sigma_r), float(sigma_t)
+    blurred = model.blurred(sigma_r, sigma_t)  # cached on the model: computed once per sigmas
+    solver = _solver(model, sigma_r, sigma_t)
 
     def objective(t: float, u: float, v: float) -> tuple[float, float]:
         e = float(model.expected(t, u, v, sigma_r, sigma_t))

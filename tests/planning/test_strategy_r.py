@@ -125,3 +125,15 @@ def test_r_needs_a_capture_model_and_sane_sigmas() -> None:
     with pytest.raises(InvalidInput) as info:
         PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy="S", sigma_r=-0.1)
     assert info.value.field == "sigma_r"
+
+
+def test_r_from_many_threads_matches_sequential_choices() -> None:
+    """Each thread solves with its own CasADi solver (its stats are those of its own last call)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    model = box_region(TH[16], 0.01, -0.005, 0.4, 0.012)
+    cases = [(sr, st, tc) for sr, st in ((0.1, 0.01), (0.2, 0.02)) for tc in (0.0, 0.3, -0.6)] * 4
+    sequential = [solve_strategy_r(model, *c) for c in cases]
+    with ThreadPoolExecutor(max_workers=6) as pool:
+        parallel = list(pool.map(lambda c: solve_strategy_r(model, *c), cases))
+    assert parallel == sequential
