@@ -52,10 +52,9 @@ async def capture_signature_version(
     from softsig_service.objects import object_from_json
 
     grid = {k: getattr(body, k) for k in ("n_theta", "half_width", "step", "holdout", "seed")}
-    CaptureGrid(**grid)
+    n = CaptureGrid(**grid).simulations
     obj = object_json(body.object)
     object_from_json(obj)
-    n = grid["n_theta"] * (2 * round(grid["half_width"] / grid["step"]) + 1) ** 2 + grid["holdout"]
     if n > ctx.settings.max_job_trials:
         raise InvalidInput(
             f"the capture model asks for {n} simulations; the service allows at most {ctx.settings.max_job_trials}",

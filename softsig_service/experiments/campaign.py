@@ -97,7 +97,7 @@ def ensure_capture_models(spec: CampaignSpec, out: Path, workers: int) -> dict[s
     from softsig_service.experiments.capture import (
         CaptureGrid,
         build_capture_model,
-        shipped_capture_matches,
+        matching_shipped_capture,
         shipped_capture_path,
     )
     from softsig_service.objects import builtin_object
@@ -111,9 +111,8 @@ def ensure_capture_models(spec: CampaignSpec, out: Path, workers: int) -> dict[s
         if not path.is_file():
             obj = builtin_object(name, x=spec.x, y=spec.y, yaw=spec.yaw).to_json()
             shipped = shipped_capture_path(spec.hand, name)
-            if shipped is not None and shipped_capture_matches(shipped, obj, CaptureGrid(), options):
-                text = shipped.read_text(encoding="utf-8")
-            else:
+            text = matching_shipped_capture(shipped, obj, CaptureGrid(), options) if shipped is not None else None
+            if text is None:
                 text = json.dumps(
                     build_capture_model(spec.hand, obj, workers=workers, plan_options=options).to_json_dict()
                 )

@@ -17,8 +17,8 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from multiprocessing import get_context
 from pathlib import Path
@@ -28,7 +28,7 @@ import numpy as np
 
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
-from softsig_service.signatures.capture import CaptureModel, agreement, theta_axis, uniform_axis
+from softsig_service.signatures.capture import CaptureModel, FloatArray, agreement, theta_axis, uniform_axis
 
 CaptureSample = tuple[float, float, float, bool]
 """``(theta [rad], u [m], v [m], carried)``."""
@@ -52,6 +52,16 @@ class CaptureGrid:
             raise InvalidInput("need 0 < step <= half_width <= 0.1 m", field="half_width", value=self.half_width)
         if not 0 <= self.holdout <= 10_000:
             raise InvalidInput("must be within [0, 10000]", field="holdout", value=self.holdout)
+
+    @property
+    def offsets(self) -> FloatArray:
+        """The offsets [m] along each hand axis."""
+        return uniform_axis(self.half_width, self.step)
+
+    @property
+    def simulations(self) -> int:
+        """How many grasps the grid and the held-out checks simulate."""
+        return self.n_theta * len(self.offsets) ** 2 + self.holdout
 
 
 def simulate_relative_yaw(
@@ -101,17 +111,18 @@ def shipped_capture_path(hand_ref: str, object_name: str, settings: Settings | N
     return path if path.is_file() else None
 
 
-def shipped_capture_matches(
+def matching_shipped_capture(
     path: Path, obj_json: dict[str, Any], grid: CaptureGrid, plan_options: dict[str, Any]
-) -> bool:
-    """Whether the shipped model at ``path`` was built for this object (pose included), grid and plan options."""
+) -> str | None:
+    """The text of the shipped model at ``path`` if it was built for this object (pose included), grid and plan
+    options, else None."""
     try:
-        meta = json.loads(path.read_text(encoding="utf-8")).get("meta", {})
+        text = path.read_text(encoding="utf-8")
+        meta = json.loads(text).get("meta", {})
     except (OSError, ValueError):
-        return False
-    return bool(
-        meta.get("object") == obj_json and meta.get("grid") == asdict(grid) and meta.get("plan_options") == plan_options
-    )
+        return None
+    same = meta.get("object") == obj_json and meta.get("grid") == asdict(grid)
+    return text if same and meta.get("plan_options") == plan_options else None
 
 
 def build_capture_model(
@@ -129,7 +140,7 @@ def build_capture_model(
     grid = grid or CaptureGrid()
     options = dict(plan_options or {})
     thetas = theta_axis(grid.n_theta)
-    us = uniform_axis(grid.half_width, grid.step)
+    us = grid.offsets
     offsets = [(float(u), float(v)) for u in us for v in us]
     rng = np.random.default_rng(grid.seed)
     hold = [
@@ -137,39 +148,30 @@ def build_capture_model(
          float(rng.uniform(-grid.half_width, grid.half_width)))
         for _ in range(grid.holdout)
     ]  # fmt: skip
-    tasks: list[tuple[float, list[tuple[float, float]], bool]] = [(float(t), offsets, False) for t in thetas]
-    tasks += [(t, [(u, v)], True) for t, u, v in hold]
-    total = len(thetas) * len(offsets) + len(hold)
+    # one task per grid yaw (all offsets), then one per held-out pose; results come back in this order
+    yaws = [float(t) for t in thetas] + [t for t, _, _ in hold]
+    task_offsets = [offsets] * len(thetas) + [[(u, v)] for _, u, v in hold]
+    total = grid.simulations
     t0 = time.perf_counter()
-    grid_samples: list[CaptureSample] = []
-    held_out: list[CaptureSample] = []
-    done = 0
+    samples: list[CaptureSample] = []
 
-    def collect(samples: list[CaptureSample], is_holdout: bool) -> None:
-        nonlocal done
-        (held_out if is_holdout else grid_samples).extend(samples)
-        done += len(samples)
-        if progress is not None:
-            progress(done, total)
+    def run(mapper: Callable[..., Iterator[list[CaptureSample]]]) -> None:
+        n = len(yaws)
+        for result in mapper(simulate_relative_yaw, [hand] * n, [obj_json] * n, yaws, task_offsets, [options] * n):
+            samples.extend(result)
+            if progress is not None:
+                progress(len(samples), total)
 
     if workers <= 1:
-        for theta, offs, is_holdout in tasks:
-            collect(simulate_relative_yaw(hand, obj_json, theta, offs, options), is_holdout)
+        run(map)
     else:
         with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as pool:
-            futures = {
-                pool.submit(simulate_relative_yaw, hand, obj_json, theta, offs, options): is_holdout
-                for theta, offs, is_holdout in tasks
-            }
-            for f in as_completed(futures):
-                collect(f.result(), futures[f])
-    order = {pose: i for i, pose in enumerate(hold)}
-    held_out.sort(key=lambda sample: order[sample[:3]])  # the draw order, whatever order the workers finished in
-    values = np.zeros((len(thetas), len(us), len(us)))
-    index = {round(float(t), 9): i for i, t in enumerate(thetas)}
-    for theta, u, v, carried in grid_samples:
-        j, k = round((u - us[0]) / grid.step), round((v - us[0]) / grid.step)
-        values[index[round(theta, 9)], j, k] = carried
+            run(pool.map)
+    n_grid = len(thetas) * len(offsets)
+    values = np.array([carried for *_, carried in samples[:n_grid]], dtype=np.float64).reshape(
+        len(thetas), len(us), len(us)
+    )
+    held_out = samples[n_grid:]
     model = CaptureModel(thetas, us, us, values)
     meta = {
         "hand": hand,

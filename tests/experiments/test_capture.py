@@ -14,7 +14,7 @@ from softsig_service.experiments.campaign import run_campaign
 from softsig_service.experiments.campaign_spec import CampaignSpec
 from softsig_service.experiments.capture import (
     CaptureGrid,
-    shipped_capture_matches,
+    matching_shipped_capture,
     shipped_capture_path,
     simulate_relative_yaw,
 )
@@ -83,4 +83,4 @@ def test_a_campaign_reuses_the_model_shipped_with_the_hand(tmp_path: Path) -> No
     assert result.complete and (tmp_path / "capture" / "box.json").read_text() == shipped.read_text()
     # built for another placement it does not match, and would be built anew
     other = {"cs_method": "ellipsoid", "cs_criterion": "absolute", "placement": "grasp_centre"}
-    assert not shipped_capture_matches(shipped, builtin_object("box").to_json(), CaptureGrid(), other)
+    assert matching_shipped_capture(shipped, builtin_object("box").to_json(), CaptureGrid(), other) is None
