@@ -51,6 +51,7 @@ from softsig_service.experiments.campaign_spec import (
     TRIALS_FILE,
     CampaignSpec,
     TrialSpec,
+    plan_options,
 )
 from softsig_service.experiments.report import write_report
 from softsig_service.experiments.statistics import summarize
@@ -66,7 +67,7 @@ def run_trial_spec(spec: TrialSpec) -> dict[str, Any]:
     from softsig_service.objects import builtin_object
 
     obj = builtin_object(spec.object, x=spec.x, y=spec.y, yaw=spec.yaw)
-    options: dict[str, Any] = {"cs_method": spec.cs_method, "cs_criterion": spec.criterion, "placement": spec.placement}
+    options = plan_options(spec)
     if spec.strategy == "R":
         options["capture"] = load_capture(spec.capture_file)
     result = run_trial(
@@ -104,7 +105,7 @@ def ensure_capture_models(spec: CampaignSpec, out: Path, workers: int) -> dict[s
 
     folder = out / CAPTURE_DIR
     folder.mkdir(parents=True, exist_ok=True)
-    options = {"cs_method": spec.cs_method, "cs_criterion": spec.criterion, "placement": spec.placement}
+    options = plan_options(spec)
     files: dict[str, Path] = {}
     for name in spec.objects:
         path = folder / f"{name}.json"

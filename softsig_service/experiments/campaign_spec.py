@@ -25,10 +25,9 @@ TABLE1_CONDITIONS: tuple[Condition, ...] = ((0.0, 0.0), (0.1, 0.01), (0.2, 0.02)
 """The paper's three uncertainty levels (docs/design.md §7)."""
 TABLE1_OBJECTS: tuple[str, ...] = ("box", "apple", "cylinder")
 STRATEGY_NAMES: tuple[str, ...] = ("S", "C")
-"""The strategies a campaign runs by default (the paper's)."""
-ALL_STRATEGIES: tuple[str, ...] = ("S", "C", "R")
-"""The strategies a campaign may run; R uses the hand's capture model on each object (``capture/<object>.json``
-in the campaign folder, built by the campaign when missing)."""
+"""The strategies a campaign runs by default (the paper's); it may run any of the planner's
+(:data:`~softsig_service.planning.strategies.STRATEGIES`): R uses the hand's capture model on each object
+(``capture/<object>.json`` in the campaign folder, copied or built by the campaign when missing)."""
 CAPTURE_DIR = "capture"
 PAPER_TABLE1: dict[str, tuple[tuple[int, int], ...]] = {
     "box": ((17, 20), (15, 16), (3, 11)),
@@ -81,6 +80,11 @@ class TrialSpec:
         return f"c{self.condition}/{self.object}/{self.strategy}/{self.trial}"
 
 
+def plan_options(spec: TrialSpec | CampaignSpec) -> dict[str, Any]:
+    """The :class:`~softsig_service.planning.planner.PlanRequest` fields set by a campaign or one of its trials."""
+    return {"cs_method": spec.cs_method, "cs_criterion": spec.criterion, "placement": spec.placement}
+
+
 def trial_seed(seed: int, cell: Sequence[int], trial: int) -> int:
     """The seed of trial ``trial`` of the cell with indices ``cell``: ``SeedSequence(seed, spawn_key=(*cell,
     trial))``'s first 32-bit word (deterministic; distinct streams for distinct keys)."""
@@ -111,6 +115,7 @@ class CampaignSpec:
     def __post_init__(self) -> None:
         from softsig_service.objects import BUILTIN_NAMES
         from softsig_service.planning.planner import PLACEMENTS
+        from softsig_service.planning.strategies import STRATEGIES
         from softsig_service.signatures.closure_types import CRITERIA, METHODS
 
         for name, value, choices in (("cs_method", self.cs_method, METHODS), ("criterion", self.criterion, CRITERIA),
@@ -133,8 +138,8 @@ class CampaignSpec:
             if name not in BUILTIN_NAMES:
                 raise InvalidInput("unknown object", field="objects", value=name, choices=BUILTIN_NAMES)
         for s in self.strategies:
-            if s not in ALL_STRATEGIES:
-                raise InvalidInput("unknown strategy", field="strategies", value=s, choices=ALL_STRATEGIES)
+            if s not in STRATEGIES:
+                raise InvalidInput("unknown strategy", field="strategies", value=s, choices=STRATEGIES)
         if len(set(self.strategies)) != len(self.strategies):
             raise InvalidInput("a strategy is named twice", field="strategies", value=list(self.strategies))
 
