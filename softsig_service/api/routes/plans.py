@@ -8,9 +8,8 @@ machine-readable ``reasons``.
 
 from __future__ import annotations
 
-import functools
-import json
 import os
+import threading
 import uuid
 from typing import Annotated, Any
 
@@ -91,16 +90,19 @@ def capture_model(ctx: AppContext, hand: str, obj: dict[str, Any], version: int 
                 f"/v1/hands/{hand}/signatures/capture with it first", field="capture_version",
             )  # fmt: skip
         rec = found[0]
-    return _capture_from_record(rec.hand, rec.version, rec.etag, rec.data)
+    with _CAPTURES_LOCK:  # plans run in many threads
+        model = _CAPTURES.get(rec.etag)  # a version's ETag names its content (hand, version, incarnation)
+        if model is None:
+            model = _CAPTURES[rec.etag] = CaptureModel.from_json_dict(rec.data)
+            while len(_CAPTURES) > CAPTURES_KEPT:
+                del _CAPTURES[next(iter(_CAPTURES))]
+    return model
 
 
-@functools.lru_cache(maxsize=32)
-def _capture_cached(key: str, data_json: str) -> CaptureModel:
-    return CaptureModel.from_json_dict(json.loads(data_json))
-
-
-def _capture_from_record(hand: str, version: int, etag: str, data: dict[str, Any]) -> CaptureModel:
-    return _capture_cached(f"{hand}/{version}/{etag}", json.dumps(data, sort_keys=True))
+CAPTURES_KEPT = 32
+"""Capture models a process keeps (the oldest read first out); each also keeps its noise averages."""
+_CAPTURES: dict[str, CaptureModel] = {}
+_CAPTURES_LOCK = threading.Lock()
 
 
 def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRecord | None = None) -> dict[str, Any]:
@@ -109,8 +111,7 @@ def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRecord | None = None
     from softsig_service.planning.planner import PlanRequest
 
     hand = hand or _plan_hand(ctx, body)
-    obj_json = object_json(body.object)
-    obj = object_from_json(obj_json)
+    obj = object_from_json(object_json(body.object))
     capture = capture_model(ctx, hand.name, obj.to_json(), body.capture_version) if body.strategy == "R" else None
     request = PlanRequest(
         hand=hand.manifest_path,
