@@ -68,8 +68,7 @@ class CaptureModel:
             raise InvalidInput("values must be finite with shape (theta, u, v)", field="values", value=vals.shape)
         if np.any(vals < 0) or np.any(vals > 1):
             raise InvalidInput("values are fractions in [0, 1]", field="values")
-        step = THETA_PERIOD / len(th)
-        if not np.allclose(th, -THETA_PERIOD / 2 + step * np.arange(len(th)), atol=1e-9):
+        if not np.allclose(th, theta_axis(len(th)), atol=1e-9):
             raise InvalidInput("theta must be uniform over [-pi/2, pi/2)", field="theta")
         for name, a in (("u", u), ("v", v)):
             d = np.diff(a)
