@@ -78,16 +78,6 @@ def _startup(settings: Settings, registry: Registry) -> Any:
     return planner
 
 
-def prepare_registry(settings: Settings) -> None:
-    """Create or upgrade the registry and register the built-in hands, once, before several service processes
-    start on it (each would otherwise do it at its start)."""
-    registry = Registry(settings.resolved_database_url(), busy_timeout=settings.db_busy_timeout)
-    try:
-        register_builtin_hands(registry, settings)
-    finally:
-        registry.dispose()
-
-
 def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobKind] | None = None) -> FastAPI:
     """The FastAPI app of the service. ``job_kinds`` adds kinds of jobs to the default ones (tests)."""
     settings = settings or Settings()

@@ -146,7 +146,7 @@ def serve(
 
     import uvicorn
 
-    from softsig_service.api.app import create_app, prepare_registry
+    from softsig_service.api.app import create_app
     from softsig_service.api.logging import configure_logging
     from softsig_service.experiments.campaign import default_workers
 
@@ -171,7 +171,8 @@ def serve(
         # the worker processes build their settings from the environment: pass the options on that way
         for key, value in overrides.items():
             os.environ[f"SOFTSIG_{key.upper()}"] = str(value)
-        prepare_registry(settings)  # migrate and register the built-in hands once, before the workers start
+        # each process migrates the registry and registers the built-in hands at its start; both are safe when
+        # processes start together (one upgrade under a lock, one registration per hand)
         _serve_processes(uvicorn.Config("softsig_service.api.app:service_app", factory=True, workers=n, **common))
 
 
