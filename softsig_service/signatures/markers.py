@@ -138,21 +138,17 @@ def _parse_rows(reader: Reader, hand: str, expected_points: Sequence[str] | None
             f"at least {MIN_POINTS} reference points are needed", field="point", value=list(point_names)
         )
     sorted_times = sorted(times)
-    if len(values) == len(sorted_times) * len(point_names):
-        positions = np.empty((len(sorted_times), len(point_names), 3))
-    else:  # some sample is missing: find it below without allocating T x N
-        positions = np.empty((1, len(point_names), 3))
+    if len(values) != len(sorted_times) * len(point_names):  # a sample is missing: name the first one
+        t, name = next((t, n) for t in sorted_times for n in point_names if (t, n) not in values)
+        raise InvalidTrajectory(
+            f"point {name!r} has no row at time {t!r} s (every point must appear at every time)",
+            field=f"time {t!r}",
+            value=[n for n in point_names if (t, n) not in values],
+        )
+    positions = np.empty((len(sorted_times), len(point_names), 3))
     for ti, t in enumerate(sorted_times):
         for pi, name in enumerate(point_names):
-            found = values.get((t, name))
-            if found is None:
-                missing = [n for n in point_names if (t, n) not in values]
-                raise InvalidTrajectory(
-                    f"point {name!r} has no row at time {t!r} s (every point must appear at every time)",
-                    field=f"time {t!r}",
-                    value=missing,
-                )
-            positions[min(ti, len(positions) - 1), pi] = found
+            positions[ti, pi] = values[(t, name)]
     return ClosureTrajectory(
         hand=hand,
         times=np.asarray(sorted_times, dtype=np.float64),
