@@ -28,10 +28,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
+from typing_extensions import Unpack
 
 from softsig_service.arm.numeric_ik import levenberg_marquardt
 from softsig_service.arm.robots_dir import SRDF_RELATIVE, URDF_RELATIVE, find_robots_dir
@@ -61,6 +63,24 @@ POSITION_TOLERANCE = 1e-5
 """IK success threshold on the flange position error [m]."""
 ROTATION_TOLERANCE = 1e-4
 """IK success threshold on the flange rotation error [rad] (angle of ``R_fk^T R_target``)."""
+
+
+class IKOptions(TypedDict, total=False):
+    """Options of :meth:`UR5.solve_ik`; every one may be left out (its default in parentheses).
+
+    ``max_iterations`` (100): Levenberg–Marquardt iterations per seed; ``rng_seed`` (0): seed of the random
+    restarts; ``exhaustive`` (False): run every seed of every group; ``analytic`` (True): try the closed-form
+    branches first; ``position_tolerance`` [m] (:data:`POSITION_TOLERANCE`) and ``rotation_tolerance`` [rad]
+    (:data:`ROTATION_TOLERANCE`): what counts as converged.
+    """
+
+    max_iterations: int
+    rng_seed: int
+    exhaustive: bool
+    analytic: bool
+    position_tolerance: float
+    rotation_tolerance: float
+
 
 _SOLUTION_DEDUP = 1e-4
 """Two IK solutions closer than this in every joint [rad] are the same solution."""
@@ -250,15 +270,11 @@ class UR5:
         current_q: ArrayLike | None = None,
         seeds: int = 8,
         *,
-        max_iterations: int = 100,
-        rng_seed: int = 0,
-        exhaustive: bool = False,
-        analytic: bool = True,
         extra_seeds: Sequence[ArrayLike] = (),
-        position_tolerance: float = POSITION_TOLERANCE,
-        rotation_tolerance: float = ROTATION_TOLERANCE,
+        **options: Unpack[IKOptions],
     ) -> IKResult:
-        """Joint positions that put ``tool0`` at ``target`` (4x4 ``T_world_tool0``, [m]).
+        """Joint positions that put ``tool0`` at ``target`` (4x4 ``T_world_tool0``, [m]); ``options`` are the
+        :class:`IKOptions` (defaults there).
 
         Every candidate is refined by the numeric solver: a Levenberg–Marquardt iteration on
         ``log6(T_fk^-1 T_target)`` with the LOCAL frame Jacobian (at most ``max_iterations`` per seed). Seeds
@@ -290,14 +306,10 @@ class UR5:
         """
         T = check_transform(target, field="target")
         ref = None if current_q is None else self.check_q(current_q, "current_q")
-        if seeds < 0 or max_iterations < 1:
+        if seeds < 0 or options.get("max_iterations", 1) < 1:
             raise InvalidInput("seeds must be >= 0 and max_iterations >= 1", field="seeds", value=seeds)
         extra = [self.check_q(x, f"extra_seeds[{i}]") for i, x in enumerate(extra_seeds)]
-        return self.solve_ik_unchecked(
-            T, ref, seeds, max_iterations=max_iterations, rng_seed=rng_seed, exhaustive=exhaustive,
-            analytic=analytic, extra_seeds=extra, position_tolerance=position_tolerance,
-            rotation_tolerance=rotation_tolerance,
-        )  # fmt: skip
+        return self.solve_ik_unchecked(T, ref, seeds, extra_seeds=extra, **options)
 
     def solve_ik_unchecked(
         self,

@@ -1,6 +1,6 @@
 """Command-line functions of the validation (typer): ``softsig validate`` and ``softsig experiment table1``.
 
-Register them in ``softsig_service/cli.py``::
+Registered in ``softsig_service/cli/main.py``::
 
     from softsig_service.cli.experiments import experiment_app, validate
 
@@ -19,18 +19,7 @@ from typing import Annotated, Any
 
 import typer
 
-from softsig_service.cli.options import (
-    CaptureOption,
-    CriterionOption,
-    CsMethodOption,
-    HandOption,
-    ObjectOption,
-    PlacementOption,
-    StrategyOption,
-    parse_object,
-    plan_options,
-    read_capture,
-)
+from softsig_service.cli import options as opt
 from softsig_service.cli.options import errors_to_exit as _errors
 from softsig_service.errors import InvalidInput, RenderUnavailable
 
@@ -107,12 +96,12 @@ class _Recorder:
 
 
 def validate(
-    hand: HandOption,
-    obj: ObjectOption,
+    hand: opt.HandOption,
+    obj: opt.ObjectOption,
     x: Annotated[float, typer.Option("--x", help="nominal object centre x in base_link [m]")] = 0.5,
     y: Annotated[float, typer.Option("--y", help="nominal object centre y in base_link [m]")] = 0.0,
     yaw: Annotated[float, typer.Option("--yaw", help="nominal object yaw about world z [rad]")] = 0.0,
-    strategy: StrategyOption = "C",
+    strategy: opt.StrategyOption = "C",
     sigma_r: Annotated[float, typer.Option("--sigma-r", help="std. dev. of the object's yaw offset [rad]")] = 0.0,
     sigma_t: Annotated[float, typer.Option("--sigma-t", help="std. dev. of its x and y offsets [m]")] = 0.0,
     trials: Annotated[int, typer.Option("--trials", help="number of trials", min=1, max=100_000)] = 1,
@@ -121,10 +110,10 @@ def validate(
     video: Annotated[Path | None, typer.Option("--video", help="write an MP4 of the trials (needs imageio)")] = None,
     frames: Annotated[Path | None, typer.Option("--frames", help="write PNG frames into DIR/trial_NNN/")] = None,
     fps: Annotated[float, typer.Option("--fps", help="frames per second of sim time", min=1.0, max=500.0)] = 30.0,
-    cs_method: CsMethodOption = "ellipsoid",
-    criterion: CriterionOption = "absolute",
-    placement: PlacementOption = "open_centre",
-    capture: CaptureOption = None,
+    cs_method: opt.CsMethodOption = "ellipsoid",
+    criterion: opt.CriterionOption = "absolute",
+    placement: opt.PlacementOption = "open_centre",
+    capture: opt.CaptureOption = None,
 ) -> None:
     """Plan a top grasp on the nominal object pose and simulate it in MuJoCo, under pose noise if asked (strategy R
     plans for that noise)."""
@@ -135,9 +124,9 @@ def validate(
 
         if strategy not in STRATEGIES:
             raise InvalidInput("unknown strategy", field="strategy", value=strategy, choices=STRATEGIES)
-        nominal = parse_object(obj, x, y, yaw)
-        options: dict[str, Any] = dict(plan_options(cs_method, criterion, placement))
-        model = read_capture(capture, hand=hand, obj=obj, strategy=strategy)
+        nominal = opt.parse_object(obj, x, y, yaw)
+        options: dict[str, Any] = dict(opt.plan_options(cs_method, criterion, placement))
+        model = opt.read_capture(capture, hand=hand, obj=obj, strategy=strategy)
         if model is not None:
             options["capture"] = model
         recorder = _Recorder(frames, video, fps) if (frames is not None or video is not None) else None
@@ -169,7 +158,7 @@ def validate(
             "sigma_r": sigma_r,
             "sigma_t": sigma_t,
             "seed": seed,
-            "plan_options": {"cs_method": cs_method, "criterion": criterion, "placement": placement},
+            "opt.plan_options": {"cs_method": cs_method, "criterion": criterion, "placement": placement},
             "trials": trials,
             "successes": successes,
             "outcomes": [
@@ -219,9 +208,9 @@ def table1(
     address: Annotated[str | None, typer.Option("--address", help="Ray cluster address (default: local)")] = None,
     progress: Annotated[bool, typer.Option("--progress/--no-progress", help="progress bar on stderr")] = True,
     as_json: Annotated[bool, typer.Option("--json", help="print the summary as JSON")] = False,
-    cs_method: CsMethodOption = "ellipsoid",
-    criterion: CriterionOption = "absolute",
-    placement: PlacementOption = "open_centre",
+    cs_method: opt.CsMethodOption = "ellipsoid",
+    criterion: opt.CriterionOption = "absolute",
+    placement: opt.PlacementOption = "open_centre",
     conditions: Annotated[
         str | None,
         typer.Option("--conditions", help="indices of the Table I conditions to run, e.g. 2 or 0,2 (default all)"),

@@ -76,31 +76,8 @@ class TrialResult:
     slip: float | None = None
 
     def to_json_dict(self) -> dict[str, Any]:
-        """A flat JSON record (units: m, rad, s)."""
-        return {
-            "seed": self.seed,
-            "success": self.success,
-            "reason": self.reason,
-            "lift_height": self.lift_height,
-            "max_lift": self.max_lift,
-            "touching_end": self.touching_end,
-            "touching_after_close": self.touching_after_close,
-            "perturbation": self.perturbation.to_json_dict(),
-            "hand": self.hand,
-            "object": self.object,
-            "strategy": self.strategy,
-            "sigma_r": self.sigma_r,
-            "sigma_t": self.sigma_t,
-            "plan_reasons": list(self.plan_reasons),
-            "sim_time": self.sim_time,
-            "wall_time": self.wall_time,
-            "timing": dict(self.timing),
-            "arm_collision_time": self.arm_collision_time,
-            "touching_table_end": self.touching_table_end,
-            "touched_in_lift": self.touched_in_lift,
-            "sag": self.sag,
-            "slip": self.slip,
-        }
+        """A flat JSON record (units: m, rad, s); the perturbation as ``{"d_yaw", "dx", "dy"}``."""
+        return dataclasses.asdict(self)
 
 
 _PLANNERS: dict[int, tuple[Settings | None, Planner]] = {}

@@ -48,9 +48,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TypedDict
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from typing_extensions import Unpack
 
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.pca import orient_axes
@@ -180,13 +182,26 @@ class EllipsoidBatch:
         )
 
 
-def mvee(
-    points: ArrayLike,
-    *,
-    tol: float = DEFAULT_TOL,
-    max_iter: int = DEFAULT_MAX_ITER,
-    lift_epsilon: float = DEFAULT_LIFT_EPSILON,
-) -> Ellipsoid:
+class MveeOptions(TypedDict, total=False):
+    """Options of the MVEE fit (:func:`mvee`, :func:`mvee_batch` and the ellipsoid closure signature); every one
+    may be left out: ``tol`` (:data:`DEFAULT_TOL`), ``max_iter`` (:data:`DEFAULT_MAX_ITER`), ``lift_epsilon``
+    (:data:`DEFAULT_LIFT_EPSILON`)."""
+
+    tol: float
+    max_iter: int
+    lift_epsilon: float
+
+
+def mvee_params(options: MveeOptions) -> MveeOptions:
+    """``options`` with every option present (the defaults filled in), e.g. to record them beside a result."""
+    return {
+        "tol": options.get("tol", DEFAULT_TOL),
+        "max_iter": options.get("max_iter", DEFAULT_MAX_ITER),
+        "lift_epsilon": options.get("lift_epsilon", DEFAULT_LIFT_EPSILON),
+    }
+
+
+def mvee(points: ArrayLike, **options: Unpack[MveeOptions]) -> Ellipsoid:
     """Minimum-volume ellipsoid enclosing the rows of ``points`` (N, d) [m], N >= d + 1.
 
     See the module docstring for the algorithm, ``tol`` (in [1e-13, 1e-7], default 1e-7), ``max_iter`` and the
@@ -196,7 +211,7 @@ def mvee(
     arr = _as_float_array(points)
     if arr.ndim != 2:
         raise InvalidInput("points must have shape (N, d)", field="points", value=list(arr.shape))
-    return mvee_batch(arr[None], tol=tol, max_iter=max_iter, lift_epsilon=lift_epsilon)[0]
+    return mvee_batch(arr[None], **options)[0]
 
 
 def mvee_batch(

@@ -222,9 +222,8 @@ class Planner:
         expected_capture: float | None = None
         if req.strategy == "C" and req.relative_pose is None:
             sols = solve_wrist_pose_unchecked(
-                model.signature.axis, hand_point, model.points_open, center, closing,
-                table_height=obj.table_height, margin=req.margin,
-            )  # fmt: skip
+                model.signature.axis, hand_point, model.points_open, center, closing, obj.table_height, req.margin
+            )
             for s in sols:
                 c = _Candidate(T=s.T_world_hand, status=s.status, iterations=s.iterations)
                 if not s.success:

@@ -58,6 +58,8 @@ CENTRING_TOLERANCE = 0.002
 MIN_HORIZONTAL_CS = 0.2
 """Below this horizontal norm of the CS axis (hand pointing down) the alignment is impossible."""
 
+FloatArray = NDArray[np.float64]
+
 
 @dataclass(frozen=True)
 class WristPoseSolution:
@@ -195,22 +197,15 @@ def solve_wrist_pose(
             raise InvalidInput("values must be finite", field=name)
     if np.linalg.norm(a) < 1e-9:
         raise InvalidInput("closing axis has no horizontal component", field="closing_axis")
-    return solve_wrist_pose_unchecked(u, pa, P, c, a, table_height=table_height, margin=margin)
+    return solve_wrist_pose_unchecked(u, pa, P, c, a, table_height, margin)
 
 
 def solve_wrist_pose_unchecked(
-    u: NDArray[np.float64],
-    pa: NDArray[np.float64],
-    P: NDArray[np.float64],
-    c: NDArray[np.float64],
-    a: NDArray[np.float64],
-    *,
-    table_height: float = 0.0,
-    margin: float = 0.005,
+    u: FloatArray, pa: FloatArray, P: FloatArray, c: FloatArray, a: FloatArray, table_height: float, margin: float
 ) -> list[WristPoseSolution]:
     """:func:`solve_wrist_pose` for callers that pass checked values: ``u`` ``(3,)``, ``pa`` ``(3,)`` [m], ``P``
     ``(N, 3)`` [m] (hand frame), ``c`` ``(3,)`` [m] and ``a`` (2 or 3 components with a horizontal part, world
-    frame), all finite float arrays. Nothing is validated again."""
+    frame), all finite float arrays; ``table_height`` and ``margin`` [m] as there. Nothing is validated again."""
     a = np.asarray(a, dtype=float).ravel()[:2]
     a = a / np.linalg.norm(a)
     u = u / np.linalg.norm(u)

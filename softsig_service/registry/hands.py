@@ -19,6 +19,7 @@ from sqlalchemy.orm import Session
 from softsig_service.errors import Conflict, HandNotFound, PreconditionFailed
 from softsig_service.registry.db import Registry
 from softsig_service.registry.models import HandRow, utcnow
+from softsig_service.registry.records import record_from_row
 
 
 def etag_matches(current: str | None, if_match: str) -> bool:
@@ -58,18 +59,7 @@ class HandRecord:
 
 
 def _hand(row: HandRow) -> HandRecord:
-    return HandRecord(
-        name=row.name,
-        builtin=row.builtin,
-        revision=row.revision,
-        manifest_path=row.manifest_path,
-        folder=row.folder,
-        files=list(row.files or []),
-        info=dict(row.info or {}),
-        signature_count=row.signature_count,
-        created_at=row.created_at,
-        updated_at=row.updated_at,
-    )
+    return record_from_row(HandRecord, row)
 
 
 def hand_row(session: Session, name: str, field: str = "hand") -> HandRow:

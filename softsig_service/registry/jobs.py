@@ -20,9 +20,10 @@ from typing import Any
 
 from sqlalchemy import delete, func, select
 
-from softsig_service.errors import Conflict, NotFound
+from softsig_service.errors import Conflict, ServiceBusy
 from softsig_service.registry.db import Registry
 from softsig_service.registry.models import JobRow, utcnow
+from softsig_service.registry.records import record_from_row, row_or_not_found
 
 JOB_STATUSES: tuple[str, ...] = ("queued", "running", "succeeded", "failed", "cancelled", "timed_out")
 UNFINISHED: tuple[str, ...] = ("queued", "running")
@@ -56,24 +57,7 @@ class JobRecord:
 
 
 def _job(row: JobRow) -> JobRecord:
-    return JobRecord(
-        id=row.id,
-        kind=row.kind,
-        status=row.status,
-        progress=row.progress,
-        message=row.message,
-        params=dict(row.params),
-        result=dict(row.result) if row.result is not None else None,
-        error=dict(row.error) if row.error is not None else None,
-        time_limit=row.time_limit,
-        cancel_requested=row.cancel_requested,
-        created_at=row.created_at,
-        started_at=row.started_at,
-        finished_at=row.finished_at,
-        owner=row.owner,
-        lease_expires_at=row.lease_expires_at,
-        attempts=row.attempts,
-    )
+    return record_from_row(JobRecord, row)
 
 
 def add_job(
@@ -87,8 +71,6 @@ def add_job(
 ) -> JobRecord:
     """Queue a new job; :class:`~softsig_service.errors.ServiceBusy` when ``max_unfinished`` jobs are queued or
     running already. ``private`` are parameters for the worker only (never shown to clients)."""
-    from softsig_service.errors import ServiceBusy
-
     with reg.write() as s:
         busy = s.execute(select(func.count()).select_from(JobRow).where(JobRow.status.in_(UNFINISHED))).scalar_one()
         if busy >= max_unfinished:
@@ -105,9 +87,7 @@ def add_job(
 def get_job(reg: Registry, job_id: str) -> JobRecord:
     """The job ``job_id``; :class:`NotFound` if there is none."""
     with reg.read() as s:
-        row = s.get(JobRow, job_id)
-        if row is None:
-            raise NotFound("no such job", field="job_id", value=job_id)
+        row = row_or_not_found(s, JobRow, job_id, field="job_id", what="job")
         return _job(row)
 
 
@@ -142,9 +122,7 @@ def update_job(
     if bad:
         raise ValueError(f"not job fields: {sorted(bad)}")
     with reg.write() as s:
-        row = s.get(JobRow, job_id)
-        if row is None:
-            raise NotFound("no such job", field="job_id", value=job_id)
+        row = row_or_not_found(s, JobRow, job_id, field="job_id", what="job")
         if only_unfinished and row.status not in UNFINISHED:
             return None
         if owner is not None and row.owner != owner:
@@ -242,9 +220,7 @@ def request_cancel(reg: Registry, job_id: str) -> JobRecord:
     """Flag a queued or running job for cancellation; :class:`Conflict` if it has finished. A queued job nobody
     holds is cancelled at once; a running one by the process that holds it (it sees the flag on its heartbeat)."""
     with reg.write() as s:
-        row = s.get(JobRow, job_id)
-        if row is None:
-            raise NotFound("no such job", field="job_id", value=job_id)
+        row = row_or_not_found(s, JobRow, job_id, field="job_id", what="job")
         if row.status not in UNFINISHED:
             raise Conflict("the job has finished; there is nothing to cancel", field="job_id", value=row.status)
         row.cancel_requested = True

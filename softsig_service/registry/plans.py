@@ -9,9 +9,9 @@ from typing import Any
 
 from sqlalchemy import delete, func, select
 
-from softsig_service.errors import NotFound
 from softsig_service.registry.db import Registry
 from softsig_service.registry.models import PlanRow, utcnow
+from softsig_service.registry.records import record_from_row, row_or_not_found
 
 
 @dataclass(frozen=True)
@@ -28,15 +28,7 @@ class PlanRecord:
 
 
 def _plan(row: PlanRow) -> PlanRecord:
-    return PlanRecord(
-        id=row.id,
-        hand=row.hand,
-        strategy=row.strategy,
-        success=row.success,
-        request=dict(row.request),
-        result=dict(row.result),
-        created_at=row.created_at,
-    )
+    return record_from_row(PlanRecord, row)
 
 
 def add_plan(reg: Registry, *, hand: str, strategy: str, success: bool, request: dict[str, Any],
@@ -54,9 +46,7 @@ def add_plan(reg: Registry, *, hand: str, strategy: str, success: bool, request:
 def get_plan(reg: Registry, plan_id: str) -> PlanRecord:
     """The plan ``plan_id``; :class:`NotFound` if there is none."""
     with reg.read() as s:
-        row = s.get(PlanRow, plan_id)
-        if row is None:
-            raise NotFound("no such plan", field="plan_id", value=plan_id)
+        row = row_or_not_found(s, PlanRow, plan_id, field="plan_id", what="plan")
         return _plan(row)
 
 
@@ -76,9 +66,7 @@ def list_plans(
 def delete_plan(reg: Registry, plan_id: str) -> None:
     """Remove the plan ``plan_id``; :class:`NotFound` if there is none."""
     with reg.write() as s:
-        row = s.get(PlanRow, plan_id)
-        if row is None:
-            raise NotFound("no such plan", field="plan_id", value=plan_id)
+        row = row_or_not_found(s, PlanRow, plan_id, field="plan_id", what="plan")
         s.delete(row)
 
 

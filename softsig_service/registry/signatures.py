@@ -18,6 +18,7 @@ from softsig_service.errors import Conflict, NotFound, PreconditionFailed
 from softsig_service.registry.db import Registry
 from softsig_service.registry.hands import etag_matches, hand_row, incarnation
 from softsig_service.registry.models import HandRow, SignatureRow
+from softsig_service.registry.records import record_from_row
 
 
 @dataclass(frozen=True)
@@ -66,18 +67,7 @@ _CRITERION_OF_UNIT = {"m": "absolute", "1": "relative"}
 
 
 def _signature(row: SignatureRow, hand: str) -> SignatureRecord:
-    return SignatureRecord(
-        hand=hand,
-        version=row.version,
-        kind=row.kind,
-        method=row.method,
-        source=row.source,
-        hand_revision=row.hand_revision,
-        params=dict(row.params or {}),
-        data=dict(row.data),
-        created_at=row.created_at,
-        hand_created_at=row.hand.created_at,
-    )
+    return record_from_row(SignatureRecord, row, hand=hand, hand_created_at=row.hand.created_at)
 
 
 def add_signature(

@@ -66,15 +66,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from typing_extensions import Unpack
 
 from softsig_service.errors import InvalidInput, InvalidTrajectory
-from softsig_service.geometry.ellipsoid import (
-    DEFAULT_LIFT_EPSILON,
-    DEFAULT_MAX_ITER,
-    DEFAULT_TOL,
-    Ellipsoid,
-    mvee_batch,
-)
+from softsig_service.geometry.ellipsoid import Ellipsoid, MveeOptions, mvee_batch, mvee_params
 from softsig_service.geometry.pca import MomentOrigin, orient_axes, principal_components
 from softsig_service.hands.trajectory import MIN_POINTS, ClosureTrajectory
 from softsig_service.signatures.closure_types import (
@@ -100,15 +95,13 @@ def compute_closure_signature(
     traj: ClosureTrajectory,
     method: Method,
     *,
-    tol: float = DEFAULT_TOL,
-    max_iter: int = DEFAULT_MAX_ITER,
-    lift_epsilon: float = DEFAULT_LIFT_EPSILON,
     pca_about: MomentOrigin = "zero",
     criterion: Criterion = DEFAULT_CRITERION,
+    **mvee_options: Unpack[MveeOptions],
 ) -> ClosureSignature:
     """Closure signature of ``traj`` (positions [m], hand frame) by ``method``; every vector in the hand frame.
 
-    ``tol``, ``max_iter`` and ``lift_epsilon`` configure the ellipsoid method's MVEE (see
+    ``mvee_options`` (``tol``, ``max_iter``, ``lift_epsilon``) configure the ellipsoid method's MVEE (see
     :mod:`softsig_service.geometry.ellipsoid`) and ``criterion`` its delta ("absolute" [m], the default, or
     "relative"); ``pca_about`` configures the pca method ("zero", the default of docs/design.md §4, or "mean").
     Parameters of the other methods are ignored: pca and mesh neither use the criterion nor record it in their
@@ -121,9 +114,7 @@ def compute_closure_signature(
         raise InvalidInput("unknown closure-signature method", field="method", value=method, choices=METHODS)
     check_criterion(criterion)
     if method == "ellipsoid":
-        return ellipsoid_closure_signature(
-            traj.positions, tol=tol, max_iter=max_iter, lift_epsilon=lift_epsilon, criterion=criterion
-        )
+        return ellipsoid_closure_signature(traj.positions, criterion=criterion, **mvee_options)
     if method == "pca":
         return pca_closure_signature(traj.positions, about=pca_about)
     if traj.surface is not None:
@@ -141,12 +132,7 @@ def check_criterion(criterion: object) -> Criterion:
 
 
 def ellipsoid_closure_signature(
-    positions: ArrayLike,
-    *,
-    tol: float = DEFAULT_TOL,
-    max_iter: int = DEFAULT_MAX_ITER,
-    lift_epsilon: float = DEFAULT_LIFT_EPSILON,
-    criterion: Criterion = DEFAULT_CRITERION,
+    positions: ArrayLike, *, criterion: Criterion = DEFAULT_CRITERION, **mvee_options: Unpack[MveeOptions]
 ) -> ClosureSignature:
     """Ellipsoid-method CS of ``positions`` (T, N, 3) [m], hand frame; fits only E_0 and E_T.
 
@@ -157,7 +143,8 @@ def ellipsoid_closure_signature(
     """
     criterion = check_criterion(criterion)
     p = _check_positions(positions, "positions", min_points=MIN_POINTS)
-    fits = mvee_batch(p[[0, -1]], tol=tol, max_iter=max_iter, lift_epsilon=lift_epsilon)
+    mvee = mvee_params(mvee_options)
+    fits = mvee_batch(p[[0, -1]], **mvee)
     e0, e_t = fits[0], fits[1]
     r = e0.axes.T  # rows r_k, E_0's semi-axes descending, sign rule applied
     a0 = e0.semi_axes
@@ -167,10 +154,10 @@ def ellipsoid_closure_signature(
     if criterion == "absolute":
         delta, unit = absolute, "m"
         largest = max(float(e0.semi_axes.max()), float(e_t.semi_axes.max()))
-        resolution = ELLIPSOID_RESOLUTION_FACTOR * tol * largest
+        resolution = ELLIPSOID_RESOLUTION_FACTOR * mvee["tol"] * largest
     else:
         delta, unit = relative, "1"
-        resolution = ELLIPSOID_RESOLUTION_FACTOR * tol
+        resolution = ELLIPSOID_RESOLUTION_FACTOR * mvee["tol"]
     drift = r @ (e_t.center - e0.center)
     eligible = np.arange(3) < 3 - e0.n_lifted  # E_0's lifted axes are its smallest, listed last
     close_pairs = [
@@ -183,7 +170,7 @@ def ellipsoid_closure_signature(
     }
     return _assemble(
         "ellipsoid",
-        params={"tol": tol, "max_iter": max_iter, "lift_epsilon": lift_epsilon, "criterion": criterion},
+        params={**mvee, "criterion": criterion},
         directions=r,
         deformation=delta,
         anchor=e0.center,
@@ -209,17 +196,11 @@ def ellipsoid_closure_signature(
     )
 
 
-def ellipsoid_axis_series(
-    positions: ArrayLike,
-    *,
-    tol: float = DEFAULT_TOL,
-    max_iter: int = DEFAULT_MAX_ITER,
-    lift_epsilon: float = DEFAULT_LIFT_EPSILON,
-) -> EllipsoidAxisSeries:
+def ellipsoid_axis_series(positions: ArrayLike, **mvee_options: Unpack[MveeOptions]) -> EllipsoidAxisSeries:
     """Fit E_t for every frame of ``positions`` (T, N, 3) [m], hand frame; measure it along E_0's axes (docs/design.md
     §4, step 4): half-widths [m], their absolute [m] and relative changes, and the centre drift [m]."""
     p = _check_positions(positions, "positions", min_points=MIN_POINTS)
-    fits = mvee_batch(p, tol=tol, max_iter=max_iter, lift_epsilon=lift_epsilon)
+    fits = mvee_batch(p, **mvee_options)
     r = fits.axes[0].T  # rows
     semi_sq = fits.semi_axes**2  # (T, 3)
     # r_k^T A_t^-1 r_k with A_t^-1 = V_t diag(a_t^2) V_t^T

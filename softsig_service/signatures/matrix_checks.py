@@ -4,8 +4,10 @@ semidefinite clipping and pseudo-inverses, plain-float lists for JSON.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -134,3 +136,15 @@ def checked_positive(x: float, name: str) -> float:
 def float_list(values: ArrayLike) -> list[float]:
     """``values`` flattened to a list of Python floats (JSON)."""
     return [float(x) for x in np.asarray(values, dtype=np.float64).reshape(-1)]
+
+
+def json_fields(record: Any) -> dict[str, Any]:
+    """The fields of dataclass instance ``record`` as JSON values: arrays as (nested) lists of floats, NumPy scalars
+    as Python numbers and booleans, everything else as it is."""
+
+    def value(v: Any) -> Any:
+        if isinstance(v, np.ndarray):
+            return np.asarray(v, dtype=np.float64).tolist()
+        return v.item() if isinstance(v, np.generic) else v
+
+    return {f.name: value(getattr(record, f.name)) for f in dataclasses.fields(record)}

@@ -69,6 +69,9 @@ largest component positive). They depend on the reference point (the object's ce
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import ParamSpec
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -264,7 +267,22 @@ def grasp_stiffness_terms(
     transmission: Transmission = "series",
     constraints: ArrayLike | None = None,
 ) -> StiffnessTerms:
-    """:func:`grasp_stiffness` with its intermediate products."""
+    """Grasp stiffness ``K`` (6, 6) at the object's centre, linear then angular, symmetric PSD, with its
+    intermediate products (:class:`StiffnessTerms`); :func:`grasp_stiffness` returns ``K`` alone.
+
+    With the defaults (``"series"``, no constraints) and positive definite ``Kq``, ``Kz``, ``Kc`` this is exactly
+    ``G (Kc^-1 + J Kq^-1 J^T + J S Kz^-1 S^T J^T)^-1 G^T``. ``constraints`` (m, nq) are extra rows of
+    ``A dq = 0`` (equality couplings). See the module docstring for the units and the singular cases.
+
+    Args:
+        G: (6, 3nc) grasp matrix. J: (3nc, nq) hand Jacobian at the contacts.
+        Kq: (nq, nq) joint stiffness, or (nq,) its diagonal; ``inf`` on the diagonal = rigid joint.
+        Kc: (3nc, 3nc) contact stiffness [N/m], or (3nc,) its diagonal.
+        S: (nq, nz) synergy matrix (or (nq,) for one synergy); None = no synergy term.
+        Kz: (nz, nz) or (nz,) actuator stiffness; ``inf`` = rigid synergy, 0 = force source.
+        transmission: ``"series"`` (the formula) or ``"parallel"`` (``Kq + S Kz S^T``); module docstring.
+        constraints: (m, nq) rows ``A`` of linearised equality constraints ``A dq = 0``.
+    """
     G_m = checked_matrix(G, "G")
     if G_m.shape[0] != 6:
         raise InvalidInput("G must have 6 rows (linear then angular)", field="G", value=list(G_m.shape))
@@ -293,33 +311,19 @@ def grasp_stiffness_terms(
     return StiffnessTerms(K=K, contact_space=Kcs, hand=H, basis=P)
 
 
-def grasp_stiffness(
-    G: ArrayLike,
-    J: ArrayLike,
-    Kq: ArrayLike,
-    Kc: ArrayLike,
-    S: ArrayLike | None = None,
-    Kz: ArrayLike | None = None,
-    *,
-    transmission: Transmission = "series",
-    constraints: ArrayLike | None = None,
-) -> FloatArray:
-    """Grasp stiffness ``K`` (6, 6) at the object's centre, linear then angular, symmetric PSD.
+Params = ParamSpec("Params")
 
-    With the defaults (``"series"``, no constraints) and positive definite ``Kq``, ``Kz``, ``Kc`` this is exactly
-    ``G (Kc^-1 + J Kq^-1 J^T + J S Kz^-1 S^T J^T)^-1 G^T``. ``constraints`` (m, nq) are extra rows of
-    ``A dq = 0`` (equality couplings). See the module docstring for the units and the singular cases.
 
-    Args:
-        G: (6, 3nc) grasp matrix. J: (3nc, nq) hand Jacobian at the contacts.
-        Kq: (nq, nq) joint stiffness, or (nq,) its diagonal; ``inf`` on the diagonal = rigid joint.
-        Kc: (3nc, 3nc) contact stiffness [N/m], or (3nc,) its diagonal.
-        S: (nq, nz) synergy matrix (or (nq,) for one synergy); None = no synergy term.
-        Kz: (nz, nz) or (nz,) actuator stiffness; ``inf`` = rigid synergy, 0 = force source.
-        transmission: ``"series"`` (the formula) or ``"parallel"`` (``Kq + S Kz S^T``); module docstring.
-        constraints: (m, nq) rows ``A`` of linearised equality constraints ``A dq = 0``.
-    """
-    return grasp_stiffness_terms(G, J, Kq, Kc, S, Kz, transmission=transmission, constraints=constraints).K
+def _matrix_alone(terms: Callable[Params, StiffnessTerms]) -> Callable[Params, FloatArray]:
+    def grasp_stiffness(*args: Params.args, **kwargs: Params.kwargs) -> FloatArray:
+        """Grasp stiffness ``K`` (6, 6) at the object's centre, linear then angular, symmetric PSD: the ``K`` of
+        :func:`grasp_stiffness_terms`, which takes the same arguments and documents them."""
+        return terms(*args, **kwargs).K
+
+    return grasp_stiffness
+
+
+grasp_stiffness = _matrix_alone(grasp_stiffness_terms)
 
 
 def principal_stiffness(block: ArrayLike) -> PrincipalStiffness:

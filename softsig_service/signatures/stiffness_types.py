@@ -11,7 +11,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from softsig_service.signatures.matrix_checks import float_list
+from softsig_service.signatures.matrix_checks import float_list, json_fields
 
 FloatArray = NDArray[np.float64]
 
@@ -74,14 +74,7 @@ class BreakForce:
 
     def to_json_dict(self) -> dict[str, Any]:
         """``{"direction", "force" [N], "capped", "reason", "displacement" [m], "time" [s]}``."""
-        return {
-            "direction": float_list(self.direction),
-            "force": float(self.force),
-            "capped": bool(self.capped),
-            "reason": self.reason,
-            "displacement": float(self.displacement),
-            "time": float(self.time),
-        }
+        return json_fields(self)
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,15 +101,8 @@ class ContactRecord:
         return float(self.force @ self.normal)
 
     def to_json_dict(self) -> dict[str, Any]:
-        """``{"position" [m], "normal", "force" [N], "normal_force" [N], "hand_body", "hand_geom"}``."""
-        return {
-            "position": float_list(self.position),
-            "normal": float_list(self.normal),
-            "force": float_list(self.force),
-            "normal_force": self.normal_force,
-            "hand_body": self.hand_body,
-            "hand_geom": self.hand_geom,
-        }
+        """``{"position" [m], "normal", "force" [N], "hand_body", "hand_geom", "normal_force" [N]}``."""
+        return {**json_fields(self), "normal_force": self.normal_force}
 
 
 @dataclass(frozen=True, eq=False)

@@ -23,7 +23,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, TypedDict
 
 import mujoco
 import numpy as np
@@ -46,6 +46,16 @@ from softsig_service.simulation.grasp_state import (
 )
 
 FloatArray = NDArray[np.float64]
+
+
+class GraspOptions(TypedDict, total=False):
+    """Options of :func:`grasp_object` and :func:`~softsig_service.simulation.stiffness_signature.find_power_grasp`;
+    each may be left out or None (see :func:`grasp_object`)."""
+
+    center: ArrayLike | None
+    orientation: ArrayLike | None
+    settings: GraspSettings | None
+    app_settings: Settings | None
 
 
 def grasp_object(

@@ -5,6 +5,7 @@ Frames: the hand frame (docs/design.md §3); lengths [m], forces [N], times [s].
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -82,19 +83,7 @@ class GraspSettings:
 
     def to_json_dict(self) -> dict[str, Any]:
         """The settings as a JSON dict (None where the manifest's value is used)."""
-        return {
-            "duration": self.duration,
-            "settle": self.settle,
-            "release": self.release,
-            "settle_speed": self.settle_speed,
-            "settle_angular_speed": self.settle_angular_speed,
-            "max_extra_settle": self.max_extra_settle,
-            "clearance": self.clearance,
-            "search_step": self.search_step,
-            "search_distance": self.search_distance,
-            "require_hold": self.require_hold,
-            "noslip_iterations": self.noslip_iterations,
-        }
+        return dataclasses.asdict(self)
 
 
 @dataclass(frozen=True, eq=False)

@@ -43,6 +43,7 @@ the 6 axes as above, then the 12 edges, then the 8 corners (each group in lexico
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
@@ -151,21 +152,7 @@ class PullSettings:
 
     def to_json_dict(self) -> dict[str, Any]:
         """The settings as a JSON dict (units: N, m, s, m/s, N/s)."""
-        return {
-            "mode": self.mode,
-            "cap": self.cap,
-            "displacement_threshold": self.displacement_threshold,
-            "contact_loss_time": self.contact_loss_time,
-            "start_force": self.start_force,
-            "growth": self.growth,
-            "min_dwell": self.min_dwell,
-            "max_dwell": self.max_dwell,
-            "settle_speed": self.settle_speed,
-            "resolution_abs": self.resolution_abs,
-            "resolution_rel": self.resolution_rel,
-            "rate": self.rate,
-            "hold_at_cap": self.hold_at_cap,
-        }
+        return dataclasses.asdict(self)
 
 
 def _check(value: Any, field: str, *, strict: bool) -> None:

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from typing_extensions import Unpack
 
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
@@ -31,7 +32,7 @@ from softsig_service.signatures.stiffness_types import (
     StiffnessSignature,
     Transmission,
 )
-from softsig_service.simulation.grasp import grasp_object
+from softsig_service.simulation.grasp import GraspOptions, grasp_object
 from softsig_service.simulation.grasp_matrices import (
     grasp_matrices,
     grasp_stiffness_from_matrices,
@@ -58,32 +59,25 @@ MAX_LIFT_STEPS = 40
 
 
 def find_power_grasp(
-    hand: HandModel,
-    obj: TableObject | str | Mapping[str, Any],
-    *,
-    center: ArrayLike | None = None,
-    orientation: ArrayLike | None = None,
-    settings: GraspSettings | None = None,
-    app_settings: Settings | None = None,
+    hand: HandModel, obj: TableObject | str | Mapping[str, Any], **options: Unpack[GraspOptions]
 ) -> Grasp:
     """A power grasp found in MuJoCo: the automatic placement, else the first nearby placement the hand holds.
 
-    With an explicit ``center`` this is :func:`grasp_object`. Otherwise the automatic placement is tried first;
-    if the hand does not hold the object alone there, the placement is shifted in the palm plane by
+    ``options`` are those of :func:`grasp_object` (:class:`GraspOptions`). With an explicit ``center`` this is
+    :func:`grasp_object`. Otherwise the automatic placement is tried first; if the hand does not hold the object
+    alone there, the placement is shifted in the palm plane by
     :data:`POWER_GRASP_OFFSETS` (each raised along +z until it clears the open hand) and the first held grasp
     is returned. If none holds, the automatic (not held) grasp is returned and says so (``held`` False).
     """
-    first = grasp_object(hand, obj, center=center, orientation=orientation, settings=settings,
-                         app_settings=app_settings)  # fmt: skip
-    if center is not None or first.held:
+    first = grasp_object(hand, obj, **options)
+    if options.get("center") is not None or first.held:
         return first
-    step = (settings or GraspSettings()).search_step
+    step = (options.get("settings") or GraspSettings()).search_step
     for dx, dy in POWER_GRASP_OFFSETS:
         c = first.initial_center + np.array([dx, dy, 0.0])
         for _ in range(MAX_LIFT_STEPS):
             try:
-                grasp = grasp_object(hand, obj, center=c, orientation=orientation, settings=settings,
-                                     app_settings=app_settings)  # fmt: skip
+                grasp = grasp_object(hand, obj, **{**options, "center": c})
             except InvalidInput:
                 c = c + np.array([0.0, 0.0, 4 * step])  # overlaps the open hand: move out of the palm
                 continue
