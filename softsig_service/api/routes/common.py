@@ -1,12 +1,10 @@
-"""What the route modules share: problem responses for the OpenAPI document, links and pagination."""
+"""What the route modules share: access and problem responses for the OpenAPI document."""
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Any
 
-from fastapi import Query
-
-from softsig_service.api.deps import WriteAccess
+from softsig_service.api.deps import ReadAccess, WriteAccess
 from softsig_service.api.problems import PROBLEM_MEDIA_TYPE
 from softsig_service.api.schemas import JobOut, Problem
 
@@ -28,24 +26,23 @@ WRITE: dict[int | str, dict[str, Any]] = {
     **COMMON,
 }
 
+Responses = dict[int | str, dict[str, Any]]
+"""The OpenAPI responses of a route by status code (or ``"4XX"`` ranges)."""
+
+
+def read_route(responses: Responses | None = None) -> dict[str, Any]:
+    """The declarations of a route that reads: read access and ``responses`` with the :data:`READ` problems."""
+    return {"dependencies": [ReadAccess], "responses": {**(responses or {}), **READ}}
+
+
+def write_route(responses: Responses | None = None) -> dict[str, Any]:
+    """The declarations of a route that writes: write access and ``responses`` with the :data:`WRITE` problems."""
+    return {"dependencies": [WriteAccess], "responses": {**(responses or {}), **WRITE}}
+
+
 SUBMIT_JOB: dict[str, Any] = {
     "status_code": 202,
     "response_model": JobOut,
-    "dependencies": [WriteAccess],
-    "responses": {
-        501: problem("this job kind is not offered"),
-        503: problem("the job queue is full (Retry-After)"),
-        **WRITE,
-    },
+    **write_route({501: problem("this job kind is not offered"), 503: problem("the job queue is full (Retry-After)")}),
 }
 """What every route that submits a job declares: 202 with the job, write access, 501 and 503."""
-
-DEFAULT_LIMIT = 50
-"""The page size of every list when ``limit`` is not given."""
-Limit = Annotated[int, Query(ge=1, le=500, description="page size (default 50 on every list)")]
-Offset = Annotated[int, Query(ge=0, le=10_000_000, description="items to skip")]
-
-
-def page(items: list[Any], limit: int, offset: int) -> dict[str, Any]:
-    """One page of an in-memory list: ``{"items", "total", "limit", "offset"}``."""
-    return {"items": items[offset : offset + limit], "total": len(items), "limit": limit, "offset": offset}

@@ -29,8 +29,9 @@ from fastapi import APIRouter, File, Path, Request, Response, UploadFile
 from starlette.concurrency import run_in_threadpool
 
 from softsig_service import registry as repo
-from softsig_service.api.deps import Ctx, IfMatchRequired, ReadAccess, WriteAccess
-from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, WRITE, Limit, Offset, page, problem
+from softsig_service.api.deps import Ctx, IfMatchRequired, WriteAccess
+from softsig_service.api.routes.common import WRITE, problem, read_route
+from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page
 from softsig_service.api.schemas import HAND_NAME_PATTERN, HandList, HandOut
 from softsig_service.errors import Conflict, InvalidHandModel, InvalidManifest, ModelTooLarge, UnsafePath
 from softsig_service.hands.archive import read_archive
@@ -194,7 +195,7 @@ def _remove(folder: str | FsPath | None) -> None:
             FsPath(folder).parent.rmdir()
 
 
-@router.get("/hands", response_model=HandList, dependencies=[ReadAccess], responses=READ, summary="List hands")
+@router.get("/hands", response_model=HandList, **read_route(), summary="List hands")
 def list_hands(ctx: Ctx, limit: Limit = DEFAULT_LIMIT, offset: Offset = 0) -> dict[str, Any]:
     """The registered hands (built in and uploaded), by name."""
     return page([hand_summary(r) for r in repo.list_hands(ctx.registry)], limit, offset)
@@ -269,8 +270,7 @@ async def _register(
 @router.get(
     "/hands/{hand}",
     response_model=HandOut,
-    dependencies=[ReadAccess],
-    responses={304: {"description": "If-None-Match matched the current ETag"}, **READ},
+    **read_route({304: {"description": "If-None-Match matched the current ETag"}}),
     summary="Get a hand",
 )
 def get_hand(ctx: Ctx, hand: HandPath, request: Request, response: Response) -> Any:

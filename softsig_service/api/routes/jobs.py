@@ -21,16 +21,11 @@ from starlette.concurrency import run_in_threadpool
 
 from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
-from softsig_service.api.deps import Ctx, ReadAccess, WriteAccess
+from softsig_service.api.deps import Ctx
 from softsig_service.api.job_responses import accepted, job_out
-from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, SUBMIT_JOB, WRITE, Limit, Offset, page, problem
-from softsig_service.api.schemas import (
-    ExperimentIn,
-    JobFiles,
-    JobList,
-    JobOut,
-    ValidationIn,
-)
+from softsig_service.api.routes.common import SUBMIT_JOB, problem, read_route, write_route
+from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page
+from softsig_service.api.schemas import ExperimentIn, JobFiles, JobList, JobOut, ValidationIn
 from softsig_service.errors import HandNotFound, InvalidInput, NotAvailable, NotFound
 from softsig_service.objects import object_from_json
 from softsig_service.objects.schema import object_json
@@ -103,7 +98,7 @@ async def create_experiment(ctx: Ctx, body: ExperimentIn) -> JSONResponse:
     return accepted(job)
 
 
-@router.get("/jobs", response_model=JobList, dependencies=[ReadAccess], responses=READ, summary="List jobs")
+@router.get("/jobs", response_model=JobList, **read_route(), summary="List jobs")
 def list_jobs(
     ctx: Ctx,
     kind: Annotated[str | None, Query(max_length=32, description="only jobs of this kind")] = None,
@@ -119,7 +114,7 @@ def list_jobs(
     return {"items": [job_out(r) for r in items], "total": total, "limit": limit, "offset": offset}
 
 
-@router.get("/jobs/{job_id}", response_model=JobOut, dependencies=[ReadAccess], responses=READ, summary="Get a job")
+@router.get("/jobs/{job_id}", response_model=JobOut, **read_route(), summary="Get a job")
 def get_job(ctx: Ctx, job_id: JobId) -> dict[str, Any]:
     """Status, progress in [0, 1], and the result or the error when finished."""
     return job_out(repo.get_job(ctx.registry, job_id))
@@ -129,8 +124,7 @@ def get_job(ctx: Ctx, job_id: JobId) -> dict[str, Any]:
     "/jobs/{job_id}/cancel",
     status_code=202,
     response_model=JobOut,
-    dependencies=[WriteAccess],
-    responses={409: problem("the job has finished already"), 404: problem("no such job"), **WRITE},
+    **write_route({409: problem("the job has finished already"), 404: problem("no such job")}),
     summary="Cancel a job",
 )
 async def cancel_job(ctx: Ctx, job_id: JobId) -> dict[str, Any]:
@@ -138,13 +132,7 @@ async def cancel_job(ctx: Ctx, job_id: JobId) -> dict[str, Any]:
     return job_out(await ctx.jobs.cancel(job_id))
 
 
-@router.get(
-    "/jobs/{job_id}/files",
-    response_model=JobFiles,
-    dependencies=[ReadAccess],
-    responses=READ,
-    summary="List a job's result files",
-)
+@router.get("/jobs/{job_id}/files", response_model=JobFiles, **read_route(), summary="List a job's result files")
 def job_files(ctx: Ctx, job_id: JobId, limit: Limit = DEFAULT_LIMIT, offset: Offset = 0) -> dict[str, Any]:
     """The files the job wrote (JSON, CSV, Markdown, PNG...), by name, with sizes [bytes] and download URLs."""
     repo.get_job(ctx.registry, job_id)
@@ -158,8 +146,7 @@ def job_files(ctx: Ctx, job_id: JobId, limit: Limit = DEFAULT_LIMIT, offset: Off
 @router.get(
     "/jobs/{job_id}/files/{name:path}",
     response_class=FileResponse,
-    dependencies=[ReadAccess],
-    responses={200: {"description": "the file", "content": {"application/octet-stream": {}}}, **READ},
+    **read_route({200: {"description": "the file", "content": {"application/octet-stream": {}}}}),
     summary="Download a job's result file",
 )
 async def job_file(ctx: Ctx, job_id: JobId, name: str) -> FileResponse:

@@ -18,8 +18,9 @@ from starlette.concurrency import run_in_threadpool
 
 from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
-from softsig_service.api.deps import Ctx, ReadAccess, WriteAccess
-from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, WRITE, Limit, Offset, problem
+from softsig_service.api.deps import Ctx
+from softsig_service.api.routes.common import problem, read_route, write_route
+from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset
 from softsig_service.api.schemas import HAND_NAME_PATTERN, PlanIn, PlanList, PlanOut
 from softsig_service.errors import HandNotFound, InvalidInput, NotFound
 from softsig_service.objects.schema import object_json
@@ -149,8 +150,7 @@ def _plan_out(rec: repo.PlanRecord) -> dict[str, Any]:
     "/plans",
     status_code=201,
     response_model=PlanOut,
-    dependencies=[WriteAccess],
-    responses={200: {"model": PlanOut, "description": "the plan, not stored (store: false)"}, **WRITE},
+    **write_route({200: {"model": PlanOut, "description": "the plan, not stored (store: false)"}}),
     summary="Plan a top grasp (synchronous)",
 )
 async def create_plan(ctx: Ctx, body: PlanIn, response: Response) -> dict[str, Any]:
@@ -166,7 +166,7 @@ async def create_plan(ctx: Ctx, body: PlanIn, response: Response) -> dict[str, A
     return data
 
 
-@router.get("/plans", response_model=PlanList, dependencies=[ReadAccess], responses=READ, summary="List plans")
+@router.get("/plans", response_model=PlanList, **read_route(), summary="List plans")
 def list_plans(
     ctx: Ctx,
     hand: Annotated[str | None, Query(pattern=HAND_NAME_PATTERN, description="only plans of this hand")] = None,
@@ -183,7 +183,7 @@ def list_plans(
     return {"items": rows, "total": total, "limit": limit, "offset": offset}
 
 
-@router.get("/plans/{plan_id}", response_model=PlanOut, dependencies=[ReadAccess], responses=READ, summary="Get a plan")
+@router.get("/plans/{plan_id}", response_model=PlanOut, **read_route(), summary="Get a plan")
 def get_plan(ctx: Ctx, plan_id: PlanId) -> dict[str, Any]:
     """A stored plan."""
     return _plan_out(repo.get_plan(ctx.registry, plan_id))
@@ -193,8 +193,7 @@ def get_plan(ctx: Ctx, plan_id: PlanId) -> dict[str, Any]:
     "/plans/{plan_id}",
     status_code=204,
     response_class=Response,
-    dependencies=[WriteAccess],
-    responses=WRITE,
+    **write_route(),
     summary="Delete a stored plan and its image",
 )
 def delete_plan(ctx: Ctx, plan_id: PlanId) -> Response:
@@ -207,12 +206,9 @@ def delete_plan(ctx: Ctx, plan_id: PlanId) -> Response:
 @router.get(
     "/plans/{plan_id}/image.png",
     response_class=Response,
-    dependencies=[ReadAccess],
-    responses={
-        200: {"content": {"image/png": {}}, "description": "top view of the plan (PNG)"},
-        404: problem("no such plan"),
-        **READ,
-    },
+    **read_route(
+        {200: {"content": {"image/png": {}}, "description": "top view of the plan (PNG)"}, 404: problem("no such plan")}
+    ),
     summary="Draw a plan (top view, PNG)",
 )
 async def plan_image(ctx: Ctx, plan_id: PlanId) -> Response:

@@ -16,9 +16,10 @@ from fastapi.responses import JSONResponse
 from starlette.concurrency import run_in_threadpool
 
 from softsig_service import registry as repo
-from softsig_service.api.deps import Ctx, IfMatchOptional, ReadAccess, WriteAccess
+from softsig_service.api.deps import Ctx, IfMatchOptional, WriteAccess
 from softsig_service.api.job_responses import accepted, capture_signature_version, stiffness_signature_version
-from softsig_service.api.routes.common import DEFAULT_LIMIT, READ, SUBMIT_JOB, WRITE, Limit, Offset, problem
+from softsig_service.api.routes.common import SUBMIT_JOB, WRITE, problem, read_route
+from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset
 from softsig_service.api.schemas import (
     CRITERION_DESCRIPTION,
     HAND_NAME_PATTERN,
@@ -86,6 +87,13 @@ def _created(response: Response, rec: repo.SignatureRecord) -> dict[str, Any]:
     return signature_out(rec)
 
 
+_SUBMIT_HAND_JOB: dict[str, Any] = {
+    **SUBMIT_JOB,
+    "responses": {404: problem("unknown hand"), **SUBMIT_JOB["responses"]},
+}
+"""A job submitted for one hand: :data:`SUBMIT_JOB` and 404 for an unknown hand."""
+
+
 @router.post(
     "/hands/{hand}/signatures/closure",
     **NEW_VERSION,
@@ -117,7 +125,7 @@ async def create_closure_signature(
 
 @router.post(
     "/hands/{hand}/signatures/stiffness",
-    **{**SUBMIT_JOB, "responses": {404: problem("unknown hand"), **SUBMIT_JOB["responses"]}},
+    **_SUBMIT_HAND_JOB,
     summary="Compute the stiffness signature (a job); stored as a new version when it succeeds",
 )
 async def create_stiffness_signature(
@@ -134,7 +142,7 @@ async def create_stiffness_signature(
 
 @router.post(
     "/hands/{hand}/signatures/capture",
-    **{**SUBMIT_JOB, "responses": {404: problem("unknown hand"), **SUBMIT_JOB["responses"]}},
+    **_SUBMIT_HAND_JOB,
     summary="Compute the capture model of strategy R (a job); stored as a new version when it succeeds",
 )
 async def create_capture_signature(
@@ -204,11 +212,7 @@ async def upload_markers(
 
 
 @router.get(
-    "/hands/{hand}/signatures",
-    response_model=SignatureList,
-    dependencies=[ReadAccess],
-    responses=READ,
-    summary="List a hand's signature versions",
+    "/hands/{hand}/signatures", response_model=SignatureList, **read_route(), summary="List a hand's signature versions"
 )
 def list_signatures(ctx: Ctx, hand: HandPath, kind: KindQuery = None, limit: Limit = DEFAULT_LIMIT,
                     offset: Offset = 0) -> dict[str, Any]:  # fmt: skip
@@ -220,8 +224,7 @@ def list_signatures(ctx: Ctx, hand: HandPath, kind: KindQuery = None, limit: Lim
 @router.get(
     "/hands/{hand}/signatures/latest",
     response_model=SignatureOut,
-    dependencies=[ReadAccess],
-    responses=READ,
+    **read_route(),
     summary="Get the latest signature version (of a kind)",
 )
 def latest_signature(ctx: Ctx, hand: HandPath, response: Response, kind: KindQuery = None) -> dict[str, Any]:
@@ -234,8 +237,7 @@ def latest_signature(ctx: Ctx, hand: HandPath, response: Response, kind: KindQue
 @router.get(
     "/hands/{hand}/signatures/{version}",
     response_model=SignatureOut,
-    dependencies=[ReadAccess],
-    responses=READ,
+    **read_route(),
     summary="Get one signature version",
 )
 def get_signature(
