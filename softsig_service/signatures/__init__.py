@@ -1,5 +1,6 @@
 """The signatures as pure math (numpy, no MuJoCo): the closure signature by three methods, the grasp-stiffness
-algebra, marker files."""
+algebra, marker files. The checked-matrix helpers the algebra uses stay in
+:mod:`softsig_service.signatures.matrix_checks`."""
 
 from softsig_service.signatures.capture import CaptureModel, agreement, theta_axis, uniform_axis, wrap_theta
 from softsig_service.signatures.closure import (
@@ -13,19 +14,6 @@ from softsig_service.signatures.closure import (
 )
 from softsig_service.signatures.closure_types import ClosureSignature, EllipsoidAxisSeries
 from softsig_service.signatures.markers import load_markers, parse_markers_csv, parse_markers_json
-from softsig_service.signatures.matrix_checks import (
-    checked_matrix,
-    checked_positive,
-    checked_vector,
-    float_list,
-    is_psd,
-    psd_clip,
-    psd_pinv,
-    rows_array,
-    split_infinite,
-    square_matrix,
-    sym,
-)
 from softsig_service.signatures.stiffness import (
     constraint_basis,
     contact_space_stiffness,
@@ -58,9 +46,6 @@ __all__ = [
     "StiffnessTerms",
     "agreement",
     "check_criterion",
-    "checked_matrix",
-    "checked_positive",
-    "checked_vector",
     "compute_closure_signature",
     "constraint_basis",
     "contact_space_stiffness",
@@ -68,12 +53,10 @@ __all__ = [
     "distinctness_ratio",
     "ellipsoid_axis_series",
     "ellipsoid_closure_signature",
-    "float_list",
     "grasp_matrix",
     "grasp_stiffness",
     "grasp_stiffness_terms",
     "hand_quadratic",
-    "is_psd",
     "load_markers",
     "mesh_closure_signature",
     "parse_markers_csv",
@@ -81,14 +64,8 @@ __all__ = [
     "pca_closure_signature",
     "principal_stiffness",
     "principal_stiffnesses",
-    "psd_clip",
-    "psd_pinv",
-    "rows_array",
     "skew",
-    "split_infinite",
-    "square_matrix",
     "stiffness_ellipsoid",
-    "sym",
     "theta_axis",
     "uniform_axis",
     "wrap_theta",
