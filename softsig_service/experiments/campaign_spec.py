@@ -92,6 +92,10 @@ def trial_seed(seed: int, cell: Sequence[int], trial: int) -> int:
     return int(ss.generate_state(1, dtype=np.uint32)[0])
 
 
+_SHARED_WITH_TRIALS = ("hand", "x", "y", "yaw", "cs_method", "criterion", "placement")
+"""The fields of a :class:`CampaignSpec` that every one of its :class:`TrialSpec` carries as they are."""
+
+
 @dataclass(frozen=True)
 class CampaignSpec:
     """A campaign grid. ``objects`` are built-in names (docs/design.md §7) placed at ``(x, y, yaw)`` [m, m, rad].
@@ -146,6 +150,7 @@ class CampaignSpec:
     def trial_specs(self) -> list[TrialSpec]:
         """Every trial, in the order condition, object, strategy, trial."""
         out: list[TrialSpec] = []
+        shared = {name: getattr(self, name) for name in _SHARED_WITH_TRIALS}
         for i, (sr, st) in enumerate(self.conditions):
             for j, obj in enumerate(self.objects):
                 for s, strat in enumerate(self.strategies):
@@ -160,13 +165,7 @@ class CampaignSpec:
                                 strategy=strat,
                                 trial=k,
                                 seed=trial_seed(self.seed, (i, j, s), k),
-                                hand=self.hand,
-                                x=self.x,
-                                y=self.y,
-                                yaw=self.yaw,
-                                cs_method=self.cs_method,
-                                criterion=self.criterion,
-                                placement=self.placement,
+                                **shared,
                             )
                         )
         return out

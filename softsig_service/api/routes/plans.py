@@ -8,6 +8,8 @@ machine-readable ``reasons``.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import os
 import threading
 import uuid
@@ -106,6 +108,15 @@ _CAPTURES: dict[str, CaptureModel] = {}
 _CAPTURES_LOCK = threading.Lock()
 
 
+@functools.cache
+def _planner_options() -> frozenset[str]:
+    """The fields of a plan request that the planner takes as they are (its other inputs, the hand, the object and
+    the capture model, are resolved from the request first)."""
+    from softsig_service.planning.planner import PlanRequest
+
+    return frozenset(f.name for f in dataclasses.fields(PlanRequest)) & set(PlanIn.model_fields) - {"hand"}
+
+
 def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRecord | None = None) -> dict[str, Any]:
     """Plan ``body`` with the app's planner and store it (unless ``store`` is false); the plan JSON."""
     from softsig_service.objects import object_from_json
@@ -114,21 +125,8 @@ def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRecord | None = None
     hand = hand or _plan_hand(ctx, body)
     obj = object_from_json(object_json(body.object))
     capture = capture_model(ctx, hand.name, obj.to_json(), body.capture_version) if body.strategy == "R" else None
-    request = PlanRequest(
-        hand=hand.manifest_path,
-        obj=obj,
-        strategy=body.strategy,
-        current_q=body.current_q,
-        closing_axis=body.closing_axis,
-        approach_distance=body.approach_distance,
-        margin=body.margin,
-        cs_method=body.cs_method,
-        cs_criterion=body.cs_criterion,
-        placement=body.placement,
-        sigma_r=body.sigma_r,
-        sigma_t=body.sigma_t,
-        capture=capture,
-    )
+    options = body.model_dump(include=set(_planner_options()))
+    request = PlanRequest(hand=hand.manifest_path, obj=obj, capture=capture, **options)
     plan = ctx.planner.plan(request)  # thread-safe: per-thread solvers and collision worlds, no lock
     ctx.metrics.plan_seconds.labels(body.strategy).observe(plan.timing.get("total", 0.0))
     data: dict[str, Any] = vectors_as_objects(to_jsonable(plan.to_json_dict()))

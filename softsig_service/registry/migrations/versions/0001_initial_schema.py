@@ -2,23 +2,15 @@
 
 A registry made by an earlier softsig (tables, no ``alembic_version``) is this revision and is stamped with it at
 start. Times are ``TIMESTAMP WITH TIME ZONE`` (the models' ``UTCDateTime`` reads them back as UTC).
-
-Revision ID: 0001
-Revises:
-Create Date: 2026-12-01
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = "0001"
-down_revision: str | Sequence[str] | None = None
-branch_labels: str | Sequence[str] | None = None
-depends_on: str | Sequence[str] | None = None
+revision = "0001"
+down_revision: str | None = None
 
 _TIME = sa.DateTime(timezone=True)
 

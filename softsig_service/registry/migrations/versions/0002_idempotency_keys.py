@@ -1,21 +1,12 @@
-"""The ``idempotency_keys`` table: the first response to a creating request, replayed to its retries.
-
-Revision ID: 0002
-Revises: 0001
-Create Date: 2026-12-01
-"""
+"""The ``idempotency_keys`` table: the first response to a creating request, replayed to its retries."""
 
 from __future__ import annotations
-
-from collections.abc import Sequence
 
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = "0002"
-down_revision: str | Sequence[str] | None = "0001"
-branch_labels: str | Sequence[str] | None = None
-depends_on: str | Sequence[str] | None = None
+revision = "0002"
+down_revision: str | None = "0001"
 
 
 def upgrade() -> None:

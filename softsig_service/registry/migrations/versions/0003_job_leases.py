@@ -1,23 +1,15 @@
 """Job leases: the process that runs a job holds a lease on it, renewed by a heartbeat; a job whose lease has
 expired (its process died) is claimed again by another process. ``private`` holds the worker-only parameters so
 that any process of the service can run any job.
-
-Revision ID: 0003
-Revises: 0002
-Create Date: 2026-12-01
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = "0003"
-down_revision: str | Sequence[str] | None = "0002"
-branch_labels: str | Sequence[str] | None = None
-depends_on: str | Sequence[str] | None = None
+revision = "0003"
+down_revision: str | None = "0002"
 
 
 def upgrade() -> None:
