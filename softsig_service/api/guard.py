@@ -19,7 +19,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import Receive, Scope, Send
 
 from softsig_service.api.deps import key_is_valid
-from softsig_service.api.problems import problem_response, run_answering
+from softsig_service.api.problems import HttpMiddleware, problem_response, run_answering
 from softsig_service.services.problems import problem_body
 
 _WRITES = frozenset({"POST", "PUT", "PATCH", "DELETE"})
@@ -33,7 +33,7 @@ class BodyReadTimeout(StarletteHTTPException):
         self.problem_extensions: dict[str, Any] = {"field": "body", "value": timeout}
 
 
-class AuthGateMiddleware:
+class AuthGateMiddleware(HttpMiddleware):
     """401 before the body is read when the API key is missing or wrong; 408 when the body stalls."""
 
     def __init__(self, app: Any, *, api_keys: list[str], read_auth: bool, body_read_timeout: float) -> None:
@@ -57,11 +57,7 @@ class AuthGateMiddleware:
             return "writes are disabled: the service has no API key configured (SOFTSIG_API_KEYS)"
         return "a valid X-API-Key header is required" + (" for writes" if write else " (read_auth is on)")
 
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
-        path = scope.get("path", "")
+    async def handle(self, scope: Scope, receive: Receive, send: Send, path: str) -> None:
         refusal = self._refusal(scope)
         if refusal is not None:
             body = problem_body(401, slug="unauthorized", detail=refusal, instance=path, field="X-API-Key")

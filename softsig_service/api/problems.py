@@ -169,7 +169,24 @@ def _limit_for(path: str, methods_upload: tuple[str, ...]) -> bool:
     return any(re.fullmatch(p, path) for p in methods_upload)
 
 
-class BodyLimitMiddleware:
+class HttpMiddleware:
+    """A pure ASGI middleware that acts on HTTP requests only: other scopes (lifespan, websockets) go to ``app``
+    untouched; a subclass answers or forwards HTTP requests in :meth:`handle`."""
+
+    app: Any
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        await self.handle(scope, receive, send, scope.get("path", ""))
+
+    async def handle(self, scope: Scope, receive: Receive, send: Send, path: str) -> None:
+        """Answer or forward the HTTP request to ``path``."""
+        raise NotImplementedError
+
+
+class BodyLimitMiddleware(HttpMiddleware):
     """Pure ASGI middleware: 413 problem when a request body exceeds its limit.
 
     The limit is the one of the first of ``route_limits`` (regular expression, bytes) whose pattern matches the
@@ -201,11 +218,7 @@ class BodyLimitMiddleware:
                 return limit
         return self.max_upload if _limit_for(path, self.upload_paths) else self.max_body
 
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
-        path = scope.get("path", "")
+    async def handle(self, scope: Scope, receive: Receive, send: Send, path: str) -> None:
         limit = self.limit(path)
         declared: int | None = None
         for key, value in scope.get("headers", ()):

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
+from softsig_service.cli.options import HandArgument, text_table, write_json
 from softsig_service.cli.options import emit as _emit
 from softsig_service.cli.options import errors_to_exit as _errors
-from softsig_service.cli.options import write_json
 from softsig_service.config import Settings
 
 hands_app = typer.Typer(
@@ -38,20 +38,38 @@ def hands_list(as_json: Annotated[bool, typer.Option("--json", help="print JSON"
                 }
             )
 
-        def text() -> str:
-            lines = [f"{'name':20s} {'kind':15s} {'joints':>6s} {'acts':>5s}  description"]
-            lines += [
-                f"{r['name']:20s} {r['kind']:15s} {r['joints']:6d} {r['actuators']:5d}  {r['description']}"
-                for r in rows
-            ]
-            return "\n".join(lines)
+        columns = [("name", "name", "20s"), ("kind", "kind", "15s"), ("joints", "joints", "6d"),
+                   ("acts", "actuators", "5d"), ("description", "description", "s")]  # fmt: skip
+        _emit(rows, as_json, lambda: text_table(rows, columns))
 
-        _emit(rows, as_json, text)
+
+def _hand_lines(info: dict[str, Any]) -> list[str]:
+    """The text of ``softsig hands show``: a hand's summary (``hand_info``) as lines."""
+    lines = [
+        f"{info['name']}: {info['description']}",
+        f"  model: {info['model_file']} ({info['model_format']})",
+    ]
+    lines.append(f"  bodies {info['bodies']}, joints {len(info['joints'])}, actuators {info['actuators']}")
+    frame = info["hand_frame"]
+
+    def vec(v: list[float]) -> str:
+        return "(" + ", ".join(f"{round(x, 3) + 0.0:+.3f}" for x in v) + ")"
+
+    lines.append(f"  mass {info['mass']:.3f} kg, mount body '{info['mount']}'")
+    lines.append(f"  hand frame in '{frame['relative_to']}': origin {vec(frame['origin'])} m")
+    lines += [f"    +{a} {vec(frame[a])}" for a in ("x", "y", "z")]
+    if info["expanded_urdf"] is not None:
+        lines.append(f"  expanded URDF sha256 {info['expanded_urdf']['sha256']}")
+    if info["mimics"]:
+        lines.append(f"  mimic couplings: {len(info['mimics'])}")
+    lines.append("  reference points: " + ", ".join(p["name"] for p in info["reference_points"]))
+    lines.append(f"  closure: {info['closure']}")
+    return lines
 
 
 @hands_app.command("show")
 def hands_show(
-    hand: Annotated[str, typer.Argument(help="built-in name or path to hand.toml")],
+    hand: HandArgument,
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
 ) -> None:
     """Show one hand: model statistics, reference points, closure and physical parameters."""
@@ -61,34 +79,12 @@ def hands_show(
     with _errors():
         info = hand_info(load_hand(hand, Settings()))
 
-        def text() -> str:
-            lines = [
-                f"{info['name']}: {info['description']}",
-                f"  model: {info['model_file']} ({info['model_format']})",
-            ]
-            lines.append(f"  bodies {info['bodies']}, joints {len(info['joints'])}, actuators {info['actuators']}")
-            frame = info["hand_frame"]
-
-            def vec(v: list[float]) -> str:
-                return "(" + ", ".join(f"{round(x, 3) + 0.0:+.3f}" for x in v) + ")"
-
-            lines.append(f"  mass {info['mass']:.3f} kg, mount body '{info['mount']}'")
-            lines.append(f"  hand frame in '{frame['relative_to']}': origin {vec(frame['origin'])} m")
-            lines += [f"    +{a} {vec(frame[a])}" for a in ("x", "y", "z")]
-            if info["expanded_urdf"] is not None:
-                lines.append(f"  expanded URDF sha256 {info['expanded_urdf']['sha256']}")
-            if info["mimics"]:
-                lines.append(f"  mimic couplings: {len(info['mimics'])}")
-            lines.append("  reference points: " + ", ".join(p["name"] for p in info["reference_points"]))
-            lines.append(f"  closure: {info['closure']}")
-            return "\n".join(lines)
-
-        _emit(info, as_json, text)
+        _emit(info, as_json, lambda: _hand_lines(info))
 
 
 @hands_app.command("close")
 def hands_close(
-    hand: Annotated[str, typer.Argument(help="built-in name or path to hand.toml")],
+    hand: HandArgument,
     out: Annotated[Path, typer.Option("--out", help="trajectory JSON to write")],
     gravity: Annotated[bool | None, typer.Option("--gravity/--no-gravity", help="override the manifest")] = None,
 ) -> None:
@@ -109,7 +105,7 @@ def hands_close(
 
 @hands_app.command("render")
 def hands_render(
-    hand: Annotated[str, typer.Argument(help="built-in name or path to hand.toml")],
+    hand: HandArgument,
     out: Annotated[Path, typer.Option("--out", help="PNG to write")],
     size: Annotated[int, typer.Option(help="width and height of each view [px]", min=64, max=2048)] = 480,
 ) -> None:

@@ -20,6 +20,7 @@ from softsig_service.cli.options import (
     parse_floats,
     plan_options,
     read_capture,
+    text_table,
 )
 from softsig_service.cli.options import emit as _emit
 from softsig_service.cli.options import errors_to_exit as _errors
@@ -73,7 +74,7 @@ def plan(
         result = Planner().plan(request)
         data = result.to_json_dict()
 
-        def text() -> str:
+        def text() -> list[str]:
             lines = [f"{result.hand} / {request.obj.name or request.obj.kind} / strategy {result.strategy}: "
                      + ("success" if result.success else "FAILED: " + ", ".join(result.reasons))]  # fmt: skip
             if result.grasp_pose is not None:
@@ -87,7 +88,7 @@ def plan(
             if qual.get("expected_capture") is not None:
                 lines.append(f"  expected capture under the stated noise {qual['expected_capture']:.3f}")
             lines.append(f"  time {result.timing['total'] * 1e3:.1f} ms")
-            return "\n".join(lines)
+            return lines
 
         _emit(data, as_json, text)
         if not result.success:
@@ -108,16 +109,10 @@ def summary(as_json: Annotated[bool, typer.Option("--json", help="print JSON")] 
             for n in builtin_hand_names(settings)
         ]
 
-        def text() -> str:
-            lines = [f"{'hand':20s} {'frames':>6s} {'open [mm]':>10s} {'closed [mm]':>11s} {'ratio':>6s}"]
-            lines += [
-                f"{r['hand']:20s} {r['frames']:6d} {r['spread_open'] * 1000:10.1f} "
-                f"{r['spread_closed'] * 1000:11.1f} {r['spread_ratio']:6.2f}"
-                for r in rows
-            ]
-            return "\n".join(lines)
-
-        _emit(rows, as_json, text)
+        mm = [{**r, "open": r["spread_open"] * 1000, "closed": r["spread_closed"] * 1000} for r in rows]
+        columns = [("hand", "hand", "20s"), ("frames", "frames", "6d"), ("open [mm]", "open", "10.1f"),
+                   ("closed [mm]", "closed", "11.1f"), ("ratio", "spread_ratio", "6.2f")]  # fmt: skip
+        _emit(rows, as_json, lambda: text_table(mm, columns))
 
 
 @app.command("serve")

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any
@@ -23,8 +23,27 @@ def errors_to_exit() -> Iterator[None]:
         raise typer.Exit(2) from None
 
 
-def emit(data: Any, as_json: bool, text: Callable[[], str]) -> None:
-    typer.echo(json.dumps(data, indent=2) if as_json else text())
+def emit(data: Any, as_json: bool, text: Callable[[], str | list[str]]) -> None:
+    """Print ``data`` as indented JSON with ``as_json``, else what ``text()`` gives (a string or lines)."""
+    if as_json:
+        typer.echo(json.dumps(data, indent=2))
+    else:
+        out = text()
+        typer.echo(out if isinstance(out, str) else "\n".join(out))
+
+
+def text_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, str, str]]) -> list[str]:
+    """``rows`` as lines of aligned columns, a heading line first. Each column is ``(heading, key, spec)``: the
+    row's value under ``key`` formatted with the format ``spec`` ("20s", "6d", "10.1f", ...); a heading is aligned
+    as its values (left for text, right for numbers) and as wide as the spec's width, or unbounded without one."""
+
+    def heading(title: str, spec: str) -> str:
+        width = spec[: len(spec) - len(spec.lstrip("0123456789"))]
+        return format(title, ("<" if spec.endswith("s") else ">") + width)
+
+    lines = [" ".join(heading(title, spec) for title, _, spec in columns).rstrip()]
+    lines += [" ".join(format(row[key], spec) for _, key, spec in columns).rstrip() for row in rows]
+    return lines
 
 
 def parse_object(spec: str, x: float, y: float, yaw: float) -> Any:
@@ -69,6 +88,7 @@ StrategyOption = Annotated[
     str, typer.Option("--strategy", help="S (bounding box) | C (closure signature) | R (robust; needs --capture)")
 ]
 HandOption = Annotated[str, typer.Option("--hand", help="built-in name or path to hand.toml")]
+HandArgument = Annotated[str, typer.Argument(help="built-in name or path to hand.toml")]
 ObjectOption = Annotated[str, typer.Option("--object", help="box | apple | cylinder | PATH.json")]
 CaptureOption = Annotated[
     Path | None,

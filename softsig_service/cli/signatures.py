@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
-from softsig_service.cli.options import CriterionOption, CsMethodOption, PlacementOption, plan_options
+from softsig_service.cli.options import CriterionOption, CsMethodOption, HandArgument, PlacementOption, plan_options
 from softsig_service.cli.options import emit as _emit
 from softsig_service.cli.options import errors_to_exit as _errors
 from softsig_service.cli.options import parse_object as _object_arg
@@ -64,7 +64,7 @@ def signature_closure(
             plot_closure_signature(traj, cs, plot)
         data = cs.to_json_dict()
 
-        def text() -> str:
+        def text() -> list[str]:
             ax = ", ".join(f"{v:+.3f}" for v in cs.axis)
             how = f"{method}, {cs.params['criterion']} criterion" if "criterion" in cs.params else method
             lines = [
@@ -77,14 +77,14 @@ def signature_closure(
             ]
             if plot is not None:
                 lines.append(f"  wrote {plot}")
-            return "\n".join(lines)
+            return lines
 
         _emit(data, as_json, text)
 
 
 @signature_app.command("stiffness")
 def signature_stiffness(
-    hand: Annotated[str, typer.Argument(help="built-in name or path to hand.toml")],
+    hand: HandArgument,
     obj: Annotated[
         str, typer.Option("--object", help="box | apple | cylinder | sphere:R (radius [m]) | PATH.json")
     ] = "apple",
@@ -110,7 +110,7 @@ def signature_stiffness(
             plot_stiffness_signature(ss, plot)
         data = ss.to_json_dict()
 
-        def text() -> str:
+        def text() -> list[str]:
             pt, pr = ss.principal_translational, ss.principal_rotational
             held = data["parameters"]["grasp"]["held"]
             lines = [
@@ -125,7 +125,7 @@ def signature_stiffness(
                 lines.append(f"    ({d})  {b.force:7.2f}  {b.reason}")
             if plot is not None:
                 lines.append(f"  wrote {plot}")
-            return "\n".join(lines)
+            return lines
 
         _emit(data, as_json, text)
 
@@ -148,7 +148,7 @@ def _stiffness_object(spec: str) -> Any:
 
 @signature_app.command("capture")
 def signature_capture(
-    hand: Annotated[str, typer.Argument(help="built-in name or path to hand.toml")],
+    hand: HandArgument,
     out: Annotated[Path, typer.Option("--out", help="JSON file to write the capture model into")],
     obj: Annotated[str, typer.Option("--object", help="box | apple | cylinder | PATH.json")] = "box",
     n_theta: Annotated[int, typer.Option("--n-theta", help="relative yaws over a half turn", min=2, max=72)] = 12,

@@ -23,7 +23,7 @@ from sqlalchemy import delete, func, select
 from softsig_service.errors import Conflict, ServiceBusy
 from softsig_service.registry.db import Registry
 from softsig_service.registry.models import JobRow, utcnow
-from softsig_service.registry.records import record_from_row, row_or_not_found
+from softsig_service.registry.records import get_record, inserted, record_from_row, record_page, row_or_not_found
 
 JOB_STATUSES: tuple[str, ...] = ("queued", "running", "succeeded", "failed", "cancelled", "timed_out")
 UNFINISHED: tuple[str, ...] = ("queued", "running")
@@ -79,31 +79,19 @@ def add_job(
             id=uuid.uuid4().hex, kind=kind, status="queued", progress=0.0, message="", params=params,
             time_limit=time_limit, private=private, attempts=0,
         )  # fmt: skip
-        s.add(row)
-        s.flush()
-        return _job(row)
+        return _job(inserted(s, row))
 
 
 def get_job(reg: Registry, job_id: str) -> JobRecord:
     """The job ``job_id``; :class:`NotFound` if there is none."""
-    with reg.read() as s:
-        row = row_or_not_found(s, JobRow, job_id, field="job_id", what="job")
-        return _job(row)
+    return get_record(reg, JobRow, job_id, _job, field="job_id", what="job")
 
 
 def list_jobs(
     reg: Registry, *, kind: str | None = None, status: str | None = None, limit: int = 50, offset: int = 0
 ) -> tuple[list[JobRecord], int]:
     """Jobs, newest first, optionally filtered, and the total count."""
-    with reg.read() as s:
-        q = select(JobRow)
-        n = select(func.count()).select_from(JobRow)
-        if kind is not None:
-            q, n = q.where(JobRow.kind == kind), n.where(JobRow.kind == kind)
-        if status is not None:
-            q, n = q.where(JobRow.status == status), n.where(JobRow.status == status)
-        rows = s.scalars(q.order_by(JobRow.created_at.desc(), JobRow.id).limit(limit).offset(offset)).all()
-        return [_job(r) for r in rows], int(s.execute(n).scalar_one())
+    return record_page(reg, JobRow, _job, limit=limit, offset=offset, kind=kind, status=status)
 
 
 _JOB_FIELDS = frozenset({"status", "progress", "message", "result", "error", "started_at", "finished_at"})

@@ -7,11 +7,11 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import delete, func, select
+from sqlalchemy import delete, select
 
 from softsig_service.registry.db import Registry
 from softsig_service.registry.models import PlanRow, utcnow
-from softsig_service.registry.records import record_from_row, row_or_not_found
+from softsig_service.registry.records import get_record, inserted, record_from_row, record_page, row_or_not_found
 
 
 @dataclass(frozen=True)
@@ -38,29 +38,19 @@ def add_plan(reg: Registry, *, hand: str, strategy: str, success: bool, request:
         row = PlanRow(
             id=uuid.uuid4().hex, hand=hand, strategy=strategy, success=success, request=request, result=result
         )
-        s.add(row)
-        s.flush()
-        return _plan(row)
+        return _plan(inserted(s, row))
 
 
 def get_plan(reg: Registry, plan_id: str) -> PlanRecord:
     """The plan ``plan_id``; :class:`NotFound` if there is none."""
-    with reg.read() as s:
-        row = row_or_not_found(s, PlanRow, plan_id, field="plan_id", what="plan")
-        return _plan(row)
+    return get_record(reg, PlanRow, plan_id, _plan, field="plan_id", what="plan")
 
 
 def list_plans(
     reg: Registry, *, hand: str | None = None, limit: int = 50, offset: int = 0
 ) -> tuple[list[PlanRecord], int]:
     """Stored plans, newest first, optionally of one hand, and the total count."""
-    with reg.read() as s:
-        q = select(PlanRow)
-        n = select(func.count()).select_from(PlanRow)
-        if hand is not None:
-            q, n = q.where(PlanRow.hand == hand), n.where(PlanRow.hand == hand)
-        rows = s.scalars(q.order_by(PlanRow.created_at.desc(), PlanRow.id).limit(limit).offset(offset)).all()
-        return [_plan(r) for r in rows], int(s.execute(n).scalar_one())
+    return record_page(reg, PlanRow, _plan, limit=limit, offset=offset, hand=hand)
 
 
 def delete_plan(reg: Registry, plan_id: str) -> None:
