@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, TypeVar
+
+from fastapi import Response
 
 from softsig_service.api.deps import ReadAccess, WriteAccess
 from softsig_service.api.problems import PROBLEM_MEDIA_TYPE
@@ -46,3 +48,17 @@ SUBMIT_JOB: dict[str, Any] = {
     **write_route({501: problem("this job kind is not offered"), 503: problem("the job queue is full (Retry-After)")}),
 }
 """What every route that submits a job declares: 202 with the job, write access, 501 and 503."""
+
+
+class _Tagged(Protocol):
+    @property
+    def etag(self) -> str: ...
+
+
+T = TypeVar("T", bound=_Tagged)
+
+
+def with_etag(response: Response, record: T) -> T:
+    """``record``, its strong ``ETag`` set on ``response`` (for ``If-Match`` on a later write)."""
+    response.headers["ETag"] = record.etag
+    return record

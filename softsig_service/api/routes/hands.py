@@ -30,7 +30,7 @@ from starlette.concurrency import run_in_threadpool
 
 from softsig_service import registry as repo
 from softsig_service.api.deps import Ctx, IfMatchRequired, WriteAccess
-from softsig_service.api.routes.common import WRITE, problem, read_route
+from softsig_service.api.routes.common import WRITE, problem, read_route, with_etag
 from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page
 from softsig_service.api.schemas import HAND_NAME_PATTERN, HandList, HandOut
 from softsig_service.errors import Conflict, InvalidHandModel, InvalidManifest, ModelTooLarge, UnsafePath
@@ -263,8 +263,7 @@ async def _register(
         _remove(folder)
         raise
     response.headers["Location"] = f"/v1/hands/{record.name}"
-    response.headers["ETag"] = record.etag
-    return hand_out(record)
+    return hand_out(with_etag(response, record))
 
 
 @router.get(
@@ -279,8 +278,7 @@ def get_hand(ctx: Ctx, hand: HandPath, request: Request, response: Response) -> 
     inm = request.headers.get("if-none-match")
     if inm is not None and repo.etag_matches(record.etag, inm):
         return Response(status_code=304, headers={"ETag": record.etag})
-    response.headers["ETag"] = record.etag
-    return hand_out(record)
+    return hand_out(with_etag(response, record))
 
 
 @router.put(
@@ -327,8 +325,7 @@ async def replace_hand(
         _remove(folder)
         raise
     _remove(old)
-    response.headers["ETag"] = record.etag
-    return hand_out(record)
+    return hand_out(with_etag(response, record))
 
 
 @router.delete(

@@ -24,7 +24,7 @@ from softsig_service.api.context import AppContext
 from softsig_service.api.deps import Ctx
 from softsig_service.api.job_responses import accepted, job_out
 from softsig_service.api.routes.common import SUBMIT_JOB, problem, read_route, write_route
-from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page
+from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page, page_of
 from softsig_service.api.schemas import ExperimentIn, JobFiles, JobList, JobOut, ValidationIn
 from softsig_service.errors import HandNotFound, InvalidInput, NotAvailable, NotFound
 from softsig_service.objects import object_from_json
@@ -111,7 +111,7 @@ def list_jobs(
 ) -> dict[str, Any]:
     """Jobs, newest first."""
     items, total = repo.list_jobs(ctx.registry, kind=kind, status=status, limit=limit, offset=offset)
-    return {"items": [job_out(r) for r in items], "total": total, "limit": limit, "offset": offset}
+    return page_of([job_out(r) for r in items], total, limit, offset)
 
 
 @router.get("/jobs/{job_id}", response_model=JobOut, **read_route(), summary="Get a job")

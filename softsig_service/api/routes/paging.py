@@ -12,6 +12,11 @@ Limit = Annotated[int, Query(ge=1, le=500, description="page size (default 50 on
 Offset = Annotated[int, Query(ge=0, le=10_000_000, description="items to skip")]
 
 
+def page_of(items: list[Any], total: int, limit: int, offset: int) -> dict[str, Any]:
+    """A page that was cut already (``items``, of ``total`` in all): ``{"items", "total", "limit", "offset"}``."""
+    return {"items": items, "total": total, "limit": limit, "offset": offset}
+
+
 def page(items: list[Any], limit: int, offset: int) -> dict[str, Any]:
     """One page of an in-memory list: ``{"items", "total", "limit", "offset"}``."""
-    return {"items": items[offset : offset + limit], "total": len(items), "limit": limit, "offset": offset}
+    return page_of(items[offset : offset + limit], len(items), limit, offset)

@@ -22,7 +22,7 @@ from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
 from softsig_service.api.deps import Ctx
 from softsig_service.api.routes.common import problem, read_route, write_route
-from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset
+from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page_of
 from softsig_service.api.schemas import HAND_NAME_PATTERN, PlanIn, PlanList, PlanOut
 from softsig_service.errors import HandNotFound, InvalidInput, NotFound
 from softsig_service.objects.schema import object_json
@@ -178,7 +178,7 @@ def list_plans(
          "links": _links(r.id)}
         for r in items
     ]  # fmt: skip
-    return {"items": rows, "total": total, "limit": limit, "offset": offset}
+    return page_of(rows, total, limit, offset)
 
 
 @router.get("/plans/{plan_id}", response_model=PlanOut, **read_route(), summary="Get a plan")

@@ -18,8 +18,8 @@ from starlette.concurrency import run_in_threadpool
 from softsig_service import registry as repo
 from softsig_service.api.deps import Ctx, IfMatchOptional, WriteAccess
 from softsig_service.api.job_responses import accepted, capture_signature_version, stiffness_signature_version
-from softsig_service.api.routes.common import SUBMIT_JOB, WRITE, problem, read_route
-from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset
+from softsig_service.api.routes.common import SUBMIT_JOB, WRITE, problem, read_route, with_etag
+from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page_of
 from softsig_service.api.schemas import (
     CRITERION_DESCRIPTION,
     HAND_NAME_PATTERN,
@@ -83,8 +83,7 @@ NEW_VERSION: dict[str, Any] = {
 
 def _created(response: Response, rec: repo.SignatureRecord) -> dict[str, Any]:
     response.headers["Location"] = f"/v1/hands/{rec.hand}/signatures/{rec.version}"
-    response.headers["ETag"] = rec.etag
-    return signature_out(rec)
+    return signature_out(with_etag(response, rec))
 
 
 _SUBMIT_HAND_JOB: dict[str, Any] = {
@@ -218,7 +217,7 @@ def list_signatures(ctx: Ctx, hand: HandPath, kind: KindQuery = None, limit: Lim
                     offset: Offset = 0) -> dict[str, Any]:  # fmt: skip
     """Versions, newest first (without the signature bodies)."""
     items, total = repo.list_signatures(ctx.registry, hand, kind=kind, limit=limit, offset=offset)
-    return {"items": [signature_summary(r) for r in items], "total": total, "limit": limit, "offset": offset}
+    return page_of([signature_summary(r) for r in items], total, limit, offset)
 
 
 @router.get(
@@ -230,8 +229,7 @@ def list_signatures(ctx: Ctx, hand: HandPath, kind: KindQuery = None, limit: Lim
 def latest_signature(ctx: Ctx, hand: HandPath, response: Response, kind: KindQuery = None) -> dict[str, Any]:
     """The newest version, of ``kind`` if given; 404 when there is none."""
     rec = repo.latest_signature(ctx.registry, hand, kind=kind)
-    response.headers["ETag"] = rec.etag
-    return signature_out(rec)
+    return signature_out(with_etag(response, rec))
 
 
 @router.get(
@@ -245,5 +243,4 @@ def get_signature(
 ) -> dict[str, Any]:
     """One stored version (never changes once stored)."""
     rec = repo.get_signature(ctx.registry, hand, version)
-    response.headers["ETag"] = rec.etag
-    return signature_out(rec)
+    return signature_out(with_etag(response, rec))
