@@ -273,24 +273,29 @@ class PlanOut(Out):
     """A grasp plan; maps one to one onto moveit_msgs/Grasp (docs/planning.md). ``grasp_pose`` and
     ``pre_grasp_pose`` are poses of the flange ``tool0`` in ``base_link``; joints [rad]; timing [s]."""
 
-    id: str | None = None
-    created_at: datetime | None = None
-    success: bool
-    reasons: list[str]
-    strategy: str
-    hand: str
-    object: dict[str, Any]
-    joint_names: list[str]
-    joint_positions: list[float] | None = None
-    pre_grasp_joint_positions: list[float] | None = None
+    id: str | None = Field(None, description="the stored plan's id; null when the plan was not stored")
+    created_at: datetime | None = Field(None, description="when the plan was stored (UTC); null when not stored")
+    success: bool = Field(description="whether a pose passed the IK, approach and collision checks")
+    reasons: list[str] = Field(
+        description="why the plan failed, empty on success: alignment_impossible, unreachable, "
+        "unreachable:pre_grasp, unreachable:approach, collision:table, collision:object, collision:self"
+    )
+    strategy: str = Field(description="S (bounding box), C (closure signature) or R (capture model)")
+    hand: str = Field(description="the hand's name")
+    object: dict[str, Any] = Field(description="the object as planned, on its nominal pose")
+    joint_names: list[str] = Field(description="the UR5's joints, in the order of the joint positions")
+    joint_positions: list[float] | None = Field(None, description="UR5 joints at the grasp [rad]")
+    pre_grasp_joint_positions: list[float] | None = Field(None, description="UR5 joints at the pre-grasp [rad]")
     grasp_pose: PoseOut | None = None
     pre_grasp_pose: PoseOut | None = None
     approach: Approach
     quality: Quality
-    timing: dict[str, float]
-    closure: dict[str, Any] = Field(default_factory=dict)
-    solver: dict[str, Any] = Field(default_factory=dict)
-    links: dict[str, str] = Field(default_factory=dict)
+    timing: dict[str, float] = Field(description="wall time [s] by part: strategy, ik, collision, total")
+    closure: dict[str, Any] = Field(default_factory=dict, description="the hand's closure command (grasp posture)")
+    solver: dict[str, Any] = Field(
+        default_factory=dict, description="status and iterations of the strategy, CS method, criterion, placement"
+    )
+    links: dict[str, str] = Field(default_factory=dict, description="URLs of the stored plan and its image")
 
 
 class PlanSummary(Out):
