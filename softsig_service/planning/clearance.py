@@ -85,6 +85,32 @@ class HandGeometry:
         return np.asarray(z - (np.abs(up) * self.half_box).sum(axis=1) - self.disc * across - self.ball)
 
 
+_ORIENTATIONS_KEPT = 8
+"""Orientations whose terms a :class:`HandClearance` keeps (a plan descends along one or two)."""
+
+
+def _pose(R: NDArray[np.float64], t: NDArray[np.float64]) -> NDArray[np.float64]:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, t
+    return T
+
+
+@dataclass(frozen=True, eq=False)
+class _Posed:
+    """The hand's terms at one orientation R, all at zero translation (add the flange position t).
+
+    ``lowest`` (n,) [m]: world z of each shape's lowest point; ``centres`` (n, 3) [m]: bounding-sphere centres;
+    ``centres_in_object`` (n, 3): the same in the object's primitive axes; ``rotations`` (n, 3, 3) and
+    ``origins`` (n, 3) [m]: each shape's pose in the world.
+    """
+
+    lowest: NDArray[np.float64]
+    centres: NDArray[np.float64]
+    centres_in_object: NDArray[np.float64]
+    rotations: NDArray[np.float64]
+    origins: NDArray[np.float64]
+
+
 class HandClearance:
     """Distances [m] from the open hand's primitives to the table and one object (one per plan and thread).
 
@@ -124,6 +150,7 @@ class HandClearance:
             self._object_radius = float(geom.aabb_radius)
         self._req = coal.DistanceRequest()
         self._last: tuple[bytes, tuple[float, float]] | None = None  # the last pose asked and its answer
+        self._orientations: dict[bytes, _Posed] = {}
 
     def distances(self, T_world_hand: NDArray[np.float64]) -> tuple[float, float]:
         """(to the table, to the object) [m]; negative inside; +inf for a missing object.
@@ -131,29 +158,48 @@ class HandClearance:
         Exact coal distances, queried only for shapes whose lower bound could beat the best found so far: for the
         table the exact height of the shape's lowest point above the plane (the table lies inside the half-space
         below it), for the object the gap between the shape's bounding sphere and the object's bounding box (signed
-        distance in the object's primitive frame) or bounding sphere, whichever is larger.
+        distance in the object's primitive frame) or bounding sphere, whichever is larger. What depends on the
+        hand's orientation alone is computed once per orientation (:class:`_Posed`): a descent only translates.
         """
         key = T_world_hand.tobytes()
         if self._last is not None and self._last[0] == key:
             return self._last[1]  # the descent asks again at the pose where it stopped
-        centres = self._centres @ T_world_hand[:3, :3].T + T_world_hand[:3, 3]
-        bound_table = self._hand.lowest_points(T_world_hand) - self._table_height - _TABLE_BOUND_SLACK
+        posed = self._posed(T_world_hand[:3, :3])
+        t = T_world_hand[:3, 3]
+        bound_table = posed.lowest + (t[2] - self._table_height - _TABLE_BOUND_SLACK)
         poses: dict[int, coal.Transform3s] = {}  # shape poses, built once per call for both queries
-        d_table = self._nearest(T_world_hand, poses, bound_table, self._table, self._table_tf)
+        d_table = self._nearest(posed, t, poses, bound_table, self._table, self._table_tf)
         d_obj = float("inf")
         if self._object is not None:
-            offset = centres - self._object_centre
-            excess = np.abs(offset @ self._object_R) - self._object_half  # > 0: outside the box along that axis
+            offset = posed.centres + (t - self._object_centre)
+            excess = np.abs(posed.centres_in_object + (t - self._object_centre) @ self._object_R) - self._object_half
             box_sdf = np.linalg.norm(np.maximum(excess, 0.0), axis=1) + np.minimum(excess.max(axis=1), 0.0)
             gap = np.maximum(box_sdf, np.linalg.norm(offset, axis=1) - self._object_radius)
             gap -= self._radii
-            d_obj = self._nearest(T_world_hand, poses, gap, *self._object)
+            d_obj = self._nearest(posed, t, poses, gap, *self._object)
         self._last = (key, (d_table, d_obj))
         return d_table, d_obj
 
+    def _posed(self, R: NDArray[np.float64]) -> _Posed:
+        """The orientation-only terms of the hand at the rotation ``R`` (world from flange), cached by value."""
+        key = R.tobytes()
+        posed = self._orientations.get(key)
+        if posed is None:
+            R = np.array(R, dtype=np.float64)
+            lowest = self._hand.lowest_points(_pose(R, np.zeros(3)))
+            centres = self._centres @ R.T
+            rotations = np.matmul(R, self._hand.rotations)  # (n, 3, 3), each contiguous
+            origins = self._hand.origins @ R.T
+            posed = _Posed(lowest, centres, centres @ self._object_R, rotations, origins)
+            if len(self._orientations) >= _ORIENTATIONS_KEPT:
+                self._orientations.clear()
+            self._orientations[key] = posed
+        return posed
+
     def _nearest(
         self,
-        T_world_hand: NDArray[np.float64],
+        posed: _Posed,
+        t: NDArray[np.float64],
         poses: dict[int, coal.Transform3s],
         lower_bounds: NDArray[np.float64],
         other: coal.CollisionGeometry,
@@ -163,11 +209,11 @@ class HandClearance:
         for k in np.argsort(lower_bounds).tolist():
             if lower_bounds[k] >= best:
                 break
-            geom, T_shape = self._shapes[k]
             tf = poses.get(k)
             if tf is None:
-                tf = poses[k] = _tf(T_world_hand @ T_shape)
-            best = min(best, coal.distance(geom, tf, other, other_tf, self._req, coal.DistanceResult()))
+                tf = poses[k] = coal.Transform3s(posed.rotations[k], posed.origins[k] + t)
+            result = coal.distance(self._shapes[k][0], tf, other, other_tf, self._req, coal.DistanceResult())
+            best = min(best, result)
         return best
 
     def descend(
