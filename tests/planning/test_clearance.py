@@ -53,6 +53,20 @@ def test_culled_distances_equal_brute_force(
     np.testing.assert_allclose(fast, slow, atol=1e-9)
 
 
+def test_one_clearance_asked_at_many_orientations_in_turn_equals_brute_force() -> None:
+    """The terms kept per orientation never leak into another: poses at ten orientations, asked in an
+    interleaved order and again after translations, each equal brute force."""
+    shapes = planning_model("pisa_iit_softhand").shapes
+    hc = HandClearance(shapes, builtin_object("cylinder").with_pose(0.5, 0.0, 0.7), 0.0)
+    rng = np.random.default_rng(3)
+    rotations = [hand_rotation(*rng.uniform([-math.pi, -0.2, -0.2], [math.pi, 0.2, 0.2])) for _ in range(10)]
+    for k in [0, 1, 0, 2, 3, 1, 4, 5, 6, 7, 8, 9, 0, 9, 5] * 2:
+        T = np.eye(4)
+        T[:3, :3] = rotations[k]
+        T[:3, 3] = (rng.uniform(0.4, 0.6), rng.uniform(-0.1, 0.1), rng.uniform(0.05, 0.3))
+        np.testing.assert_allclose(hc.distances(T), _brute_force(hc, T), atol=1e-9)
+
+
 def test_descent_stops_at_the_margin_on_the_first_obstacle() -> None:
     shapes = planning_model("parallel_gripper").shapes
     obj = builtin_object("box").with_pose(0.5, 0.0, 0.0)
