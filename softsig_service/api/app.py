@@ -39,7 +39,7 @@ from softsig_service.services.compute import ComputePool
 from softsig_service.services.job_kinds import default_job_kinds, register_builtin_hands
 from softsig_service.services.jobs import JobKind, JobManager
 from softsig_service.services.observability import Metrics
-from softsig_service.services.retention import retention_loop
+from softsig_service.services.retention import purge_old, retention_loop
 
 log = logging.getLogger("softsig.api")
 
@@ -112,6 +112,7 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
                 plans_dir=plans_dir,
             )
             if settings.retention_days is not None:
+                await run_in_threadpool(purge_old, registry, settings.retention_days, plans_dir, jobs_dir)
                 purger = asyncio.create_task(
                     retention_loop(registry, settings.retention_days, settings.retention_interval, plans_dir, jobs_dir)
                 )

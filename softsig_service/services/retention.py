@@ -33,10 +33,11 @@ def purge_old(registry: Registry, days: float, plans_dir: Path, jobs_dir: Path) 
 
 
 async def retention_loop(registry: Registry, days: float, interval: float, plans_dir: Path, jobs_dir: Path) -> None:
-    """Purge now and then every ``interval`` seconds until cancelled (a failed purge is logged and retried)."""
+    """Purge every ``interval`` seconds, the first time ``interval`` from now, until cancelled (a failed purge is
+    logged and retried). The service purges once at startup itself, before it answers requests."""
     while True:
+        await asyncio.sleep(interval)
         try:
             await run_in_threadpool(purge_old, registry, days, plans_dir, jobs_dir)
         except Exception:
             log.exception("retention purge failed")
-        await asyncio.sleep(interval)
