@@ -152,7 +152,7 @@ def _plan_out(rec: repo.PlanRecord) -> dict[str, Any]:
     summary="Plan a top grasp (synchronous)",
 )
 async def create_plan(ctx: Ctx, body: PlanIn, response: Response) -> dict[str, Any]:
-    """Plan a UR5 top grasp of an object with strategy S or C; the plan (``success`` may be false, with
+    """Plan a UR5 top grasp of an object with strategy S, C or R; the plan (``success`` may be false, with
     ``reasons``): 201 with ``Location`` when stored, 200 with ``store: false`` (nothing is created)."""
     hand = await run_in_threadpool(_plan_hand, ctx, body)
     await _ensure_planning_model(ctx, hand, body)
