@@ -270,3 +270,35 @@ def test_restart_keeps_the_registry(database_url: str) -> None:
     assert repo.get_hand(second, "h1").name == "h1"
     assert repo.get_plan(second, plan.id).result == {"b": 2}
     second.dispose()
+
+
+def test_lists_filter_page_and_count_newest_first(reg: Registry) -> None:
+    """Jobs by kind and status, plans by hand: each page newest first, the total counts every match, a filter of
+    None filters nothing, and records do not share their JSON with the stored rows."""
+    ids = []
+    for i in range(7):
+        kind = "validation" if i % 2 == 0 else "experiment"
+        ids.append(repo.add_job(reg, kind=kind, params={"i": i}, time_limit=60.0, max_unfinished=100).id)
+        time.sleep(0.002)  # distinct creation times
+    repo.update_job(reg, ids[0], status="succeeded")
+    repo.update_job(reg, ids[2], status="succeeded")
+
+    page, total = repo.list_jobs(reg, kind="validation", limit=2, offset=0)
+    assert total == 4 and [j.id for j in page] == [ids[6], ids[4]]
+    page, total = repo.list_jobs(reg, kind="validation", limit=2, offset=2)
+    assert total == 4 and [j.id for j in page] == [ids[2], ids[0]]
+    page, total = repo.list_jobs(reg, kind="validation", status="succeeded")
+    assert total == 2 and [j.id for j in page] == [ids[2], ids[0]]
+    page, total = repo.list_jobs(reg, kind=None, status=None, limit=3)
+    assert total == 7 and [j.id for j in page] == ids[:3:-1]
+
+    plans = []
+    for hand in ("a", "b", "a"):
+        plans.append(repo.add_plan(reg, hand=hand, strategy="C", success=True, request={"h": hand}, result={"r": 1}))
+        time.sleep(0.002)
+    page, total = repo.list_plans(reg, hand="a")
+    assert total == 2 and [p.id for p in page] == [plans[2].id, plans[0].id]
+    page[0].result["r"] = 2  # a record's JSON is its own
+    assert repo.get_plan(reg, plans[2].id).result == {"r": 1}
+    with pytest.raises(NotFound):
+        repo.get_plan(reg, "0" * 32)
