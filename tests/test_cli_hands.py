@@ -19,6 +19,21 @@ def run(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedPr
     )
 
 
+def test_hands_list_text_is_a_table_aligned_under_its_headings() -> None:
+    res = run("hands", "list")
+    assert res.returncode == 0, res.stderr
+    head, *rows = res.stdout.splitlines()
+    assert head.split() == ["name", "kind", "joints", "acts", "description"]
+    pisa = next(r for r in rows if r.startswith("pisa_iit_softhand "))
+    joints = next(
+        r["joints"] for r in json.loads(run("hands", "list", "--json").stdout) if r["name"] == "pisa_iit_softhand"
+    )
+    # numbers end where their headings end (right-aligned), text starts where its heading starts
+    assert pisa[: head.index("joints") + len("joints")].endswith(f" {joints}")
+    assert pisa[head.index("kind") :].startswith("underactuated")
+    assert pisa[head.index("description") :].startswith("Pisa/IIT SoftHand")
+
+
 def test_hands_list_json() -> None:
     res = run("hands", "list", "--json")
     assert res.returncode == 0, res.stderr
