@@ -12,8 +12,8 @@ from softsig_service.planning.hand_model import (
     remember_planning_model,
 )
 from softsig_service.planning.planner import GraspPlan, Planner, PlanRequest
-from softsig_service.planning.strategies import axis_angle_between_lines, strategy_s_poses
-from softsig_service.planning.strategy_r import RChoice, c_relative_theta, relative_poses, solve_strategy_r
+from softsig_service.planning.strategies import axis_angle_between_lines, relative_poses, strategy_s_poses
+from softsig_service.planning.strategy_r import RChoice, c_relative_theta, solve_strategy_r
 from softsig_service.planning.wrist_pose import (
     WristPoseSolution,
     hand_rotation,

@@ -48,8 +48,8 @@ from softsig_service.planning.hand_model import (
     Placement,
     planning_model,
 )
-from softsig_service.planning.strategies import STRATEGIES, axis_angle_between_lines, strategy_s_poses
-from softsig_service.planning.strategy_r import c_relative_theta, relative_poses, solve_strategy_r
+from softsig_service.planning.strategies import STRATEGIES, axis_angle_between_lines, relative_poses, strategy_s_poses
+from softsig_service.planning.strategy_r import c_relative_theta, solve_strategy_r
 from softsig_service.planning.wrist_pose import solve_wrist_pose_unchecked
 from softsig_service.signatures.capture import CaptureModel
 from softsig_service.signatures.closure_types import CRITERIA, Criterion

@@ -42,14 +42,33 @@ def strategy_s_poses(
     at the object's centre height (the planner sets it by descending along the approach). Both yaws (the axis
     has no sign) are returned.
     """
+    return relative_poses(object_center, major_axis, hand_center, 0.0, 0.0, 0.0)
+
+
+def relative_poses(
+    object_center: NDArray[np.float64],
+    major_axis: NDArray[np.float64],
+    hand_point: NDArray[np.float64],
+    theta: float,
+    u: float,
+    v: float,
+) -> list[NDArray[np.float64]]:
+    """Flange poses (4x4, world) that put the hand at relative pose ``(theta, u, v)`` to the object: hand +z down,
+    the object's major axis ``theta`` [rad] from the hand's +x (about world +z), the object's centre at ``u``,
+    ``v`` [m] from the placement point ``hand_point`` (hand frame) along the hand's +x, +y. Both yaws a half
+    turn apart are returned (the footprint is symmetric under a half turn, so both are the same relative pose).
+    The flange height is left at the object's centre height (the planner descends). Strategy S is
+    ``theta = u = v = 0``."""
     o1 = np.asarray(major_axis, dtype=float)
-    yaw0 = math.atan2(o1[1], o1[0])
+    c = np.asarray(object_center, dtype=float)
+    yaw0 = math.atan2(o1[1], o1[0]) - theta
     poses = []
     for yaw in (yaw0, yaw0 + math.pi):
         R = hand_rotation(math.remainder(yaw, 2 * math.pi), 0.0, 0.0)
         T = np.eye(4)
         T[:3, :3] = R
-        T[:3, 3] = np.asarray(object_center, dtype=float) - R @ np.asarray(hand_center, dtype=float)
-        T[2, 3] = object_center[2]
+        point = c - u * R[:, 0] - v * R[:, 1]  # where the placement point goes
+        T[:3, 3] = point - R @ np.asarray(hand_point, dtype=float)
+        T[2, 3] = c[2]
         poses.append(T)
     return poses

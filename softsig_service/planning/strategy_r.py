@@ -14,8 +14,8 @@ the objective is smooth). The small pull ``eps`` toward C's relative pose (and z
 expected capture is flat, R takes C's pose; with zero sigmas and a capture region symmetric about C's pose, R is
 C. Every local solve starts from the best grid point and from C's pose; the better optimum wins.
 
-Then R's hand poses (:func:`relative_poses`) go through the same descent, IK, approach and collision checks as
-S and C (:mod:`softsig_service.planning.planner`).
+Then R's hand poses (:func:`~softsig_service.planning.strategies.relative_poses`) go through the same descent, IK,
+approach and collision checks as S and C (:mod:`softsig_service.planning.planner`).
 
 Coordinates: world = UR5 ``base_link``; relative pose as in :mod:`softsig_service.signatures.capture`.
 """
@@ -33,42 +33,12 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
-from softsig_service.planning.wrist_pose import hand_rotation
 from softsig_service.signatures.capture import THETA_PERIOD, CaptureModel, wrap_theta
 
 TIE_WEIGHT = 1e-3
 """``eps``: the pull toward C's relative pose (dimensionless, against probabilities in [0, 1])."""
 OFFSET_SCALE = 0.02
 """``L`` [m]: the offset that costs as much as one radian of yaw in the pull."""
-
-
-def relative_poses(
-    object_center: NDArray[np.float64],
-    major_axis: NDArray[np.float64],
-    hand_point: NDArray[np.float64],
-    theta: float,
-    u: float,
-    v: float,
-) -> list[NDArray[np.float64]]:
-    """Flange poses (4x4, world) that put the hand at relative pose ``(theta, u, v)`` to the object: hand +z down,
-    the object's major axis ``theta`` [rad] from the hand's +x (about world +z), the object's centre at ``u``,
-    ``v`` [m] from the placement point ``hand_point`` (hand frame) along the hand's +x, +y. Both yaws a half
-    turn apart are returned (the footprint is symmetric under a half turn, so both are the same relative pose).
-    The flange height is left at the object's centre height (the planner descends). Strategy S is
-    ``theta = u = v = 0``."""
-    o1 = np.asarray(major_axis, dtype=float)
-    c = np.asarray(object_center, dtype=float)
-    yaw0 = math.atan2(o1[1], o1[0]) - theta
-    poses = []
-    for yaw in (yaw0, yaw0 + math.pi):
-        R = hand_rotation(math.remainder(yaw, 2 * math.pi), 0.0, 0.0)
-        T = np.eye(4)
-        T[:3, :3] = R
-        point = c - u * R[:, 0] - v * R[:, 1]  # where the placement point goes
-        T[:3, 3] = point - R @ np.asarray(hand_point, dtype=float)
-        T[2, 3] = c[2]
-        poses.append(T)
-    return poses
 
 
 def c_relative_theta(cs_axis: NDArray[np.float64], closing: str = "minor") -> float:

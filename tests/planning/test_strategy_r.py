@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 from softsig_service.errors import InvalidInput
 from softsig_service.objects import builtin_object
 from softsig_service.planning.planner import Planner, PlanRequest, planning_model
-from softsig_service.planning.strategies import strategy_s_poses
-from softsig_service.planning.strategy_r import c_relative_theta, relative_poses, solve_strategy_r
+from softsig_service.planning.strategies import relative_poses, strategy_s_poses
+from softsig_service.planning.strategy_r import c_relative_theta, solve_strategy_r
 from softsig_service.signatures.capture import CaptureModel, theta_axis, uniform_axis, wrap_theta
 
 TH = theta_axis(24)
@@ -78,8 +78,10 @@ def test_relative_poses_place_the_object_where_asked(yaw: float, theta: float, u
         hand_x = math.atan2(R[1, 0], R[0, 0])
         assert float(wrap_theta(yaw - hand_x - theta)) == pytest.approx(0.0, abs=1e-9)
     s_poses = strategy_s_poses(c, o1, point)
-    for a, b in zip(relative_poses(c, o1, point, 0.0, 0.0, 0.0), s_poses, strict=True):
-        assert np.allclose(a, b, atol=1e-12), "S is the relative pose (0, 0, 0)"
+    assert len(s_poses) == 2
+    for T in s_poses:  # S, the relative pose (0, 0, 0): hand x along the major axis, the point over the centre
+        assert abs(T[:3, 0] @ o1) == pytest.approx(1.0, abs=1e-12)
+        assert np.allclose((T[:3, :3] @ point + T[:3, 3])[:2], c[:2], atol=1e-12)
 
 
 @pytest.fixture(scope="module")
