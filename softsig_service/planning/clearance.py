@@ -171,8 +171,9 @@ class HandClearance:
         d_table = self._nearest(posed, t, poses, bound_table, self._table, self._table_tf)
         d_obj = float("inf")
         if self._object is not None:
-            offset = posed.centres + (t - self._object_centre)
-            excess = np.abs(posed.centres_in_object + (t - self._object_centre) @ self._object_R) - self._object_half
+            shift = t - self._object_centre
+            offset = posed.centres + shift
+            excess = np.abs(posed.centres_in_object + shift @ self._object_R) - self._object_half
             box_sdf = np.linalg.norm(np.maximum(excess, 0.0), axis=1) + np.minimum(excess.max(axis=1), 0.0)
             gap = np.maximum(box_sdf, np.linalg.norm(offset, axis=1) - self._object_radius)
             gap -= self._radii
