@@ -6,7 +6,7 @@ are the object's centre minus the hand's placement point (docs/design.md §6), a
 Strategy S is ``(0, 0, 0)``. The footprints of boxes, cylinders, spheres and ellipsoids are symmetric under a
 half turn, so ``theta`` has period pi.
 
-**The model** is a grid of MuJoCo grasp outcomes over (theta, u, v) (:mod:`softsig_service.simulation.capture`
+**The model** is a grid of MuJoCo grasp outcomes over (theta, u, v) (:mod:`softsig_service.experiments.capture`
 builds it): ``values[i, j, k]`` is the fraction of simulated grasps at ``(theta[i], u[j], v[k])`` that carried the
 object (0 or 1 with one simulation per cell). :meth:`CaptureModel.probability` interpolates it (trilinear,
 periodic in theta, falling to 0 one step beyond the u, v edges): the capture probability of a relative pose.

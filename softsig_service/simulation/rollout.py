@@ -148,10 +148,6 @@ class Perturbation:
         # keeps an explicit centre height (an object held above the table stays at that height)
         return dataclasses.replace(obj, x=obj.x + self.dx, y=obj.y + self.dy, yaw=obj.yaw + self.d_yaw)
 
-    def to_json_dict(self) -> dict[str, float]:
-        """``{"d_yaw": rad, "dx": m, "dy": m}``."""
-        return {"d_yaw": self.d_yaw, "dx": self.dx, "dy": self.dy}
-
 
 FrameCallback = Callable[[Scene, mujoco.MjData], None]
 """Called with the scene and its data at the frame rate of a recording (and once at the start)."""
