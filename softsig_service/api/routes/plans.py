@@ -25,6 +25,7 @@ from softsig_service.api.routes.common import problem, read_route, write_route
 from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page_of
 from softsig_service.api.schemas import HAND_NAME_PATTERN, PlanIn, PlanList, PlanOut
 from softsig_service.errors import HandNotFound, InvalidInput, NotFound
+from softsig_service.objects import TableObject
 from softsig_service.objects.schema import object_json
 from softsig_service.services.plan_image import render_plan_png
 from softsig_service.services.serialize import to_jsonable, vectors_as_objects
@@ -58,22 +59,26 @@ async def _ensure_planning_model(ctx: AppContext, hand: repo.HandRecord, body: P
         remember_planning_model(model, *key)
 
 
+def _shape(obj: dict[str, Any]) -> dict[str, Any]:
+    """An object's JSON in the parser's form (``TableObject.to_json``) without its pose and name."""
+    return {k: v for k, v in obj.items() if k not in ("pose", "name")}
+
+
 def _without_pose(obj: dict[str, Any]) -> dict[str, Any]:
-    """The object's JSON in one form (built-in names resolved), without its pose and name."""
+    """A stored object's JSON in one form (built-in names resolved), without its pose and name."""
     from softsig_service.objects import object_from_json
 
     try:
-        norm = object_from_json(obj).to_json()
+        return _shape(object_from_json(obj).to_json())
     except InvalidInput:
         return {}
-    return {k: v for k, v in norm.items() if k not in ("pose", "name")}
 
 
-def capture_model(ctx: AppContext, hand: str, obj: dict[str, Any], version: int | None) -> CaptureModel:
+def capture_model(ctx: AppContext, hand: str, obj: TableObject, version: int | None) -> CaptureModel:
     """The capture model strategy R plans with: signature ``version`` of ``hand`` (which must be a capture model
-    of an object of this shape, size, mass and friction), or the newest such one. :class:`InvalidInput` naming
-    ``capture_version`` when there is none."""
-    wanted = _without_pose(obj)
+    of an object of the shape, size, mass and friction of ``obj``), or the newest such one. :class:`InvalidInput`
+    naming ``capture_version`` when there is none."""
+    wanted = _shape(obj.to_json())
     if version is not None:
         try:
             rec = repo.get_signature(ctx.registry, hand, version)
@@ -117,14 +122,14 @@ def _planner_options() -> frozenset[str]:
     return frozenset(f.name for f in dataclasses.fields(PlanRequest)) & set(PlanIn.model_fields) - {"hand"}
 
 
-def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRecord | None = None) -> dict[str, Any]:
-    """Plan ``body`` with the app's planner and store it (unless ``store`` is false); the plan JSON."""
+def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRecord) -> dict[str, Any]:
+    """Plan ``body`` for the registered ``hand`` with the app's planner and store it (unless ``store`` is false);
+    the plan JSON."""
     from softsig_service.objects import object_from_json
     from softsig_service.planning.planner import PlanRequest
 
-    hand = hand or _plan_hand(ctx, body)
     obj = object_from_json(object_json(body.object))
-    capture = capture_model(ctx, hand.name, obj.to_json(), body.capture_version) if body.strategy == "R" else None
+    capture = capture_model(ctx, hand.name, obj, body.capture_version) if body.strategy == "R" else None
     options = body.model_dump(include=set(_planner_options()))
     request = PlanRequest(hand=hand.manifest_path, obj=obj, capture=capture, **options)
     plan = ctx.planner.plan(request)  # thread-safe: per-thread solvers and collision worlds, no lock
