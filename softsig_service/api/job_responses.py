@@ -5,6 +5,7 @@ imports another).
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 from fastapi.responses import JSONResponse
@@ -51,7 +52,7 @@ async def capture_signature_version(
     from softsig_service.experiments.capture import CaptureGrid
     from softsig_service.objects import object_from_json
 
-    grid = {k: getattr(body, k) for k in ("n_theta", "half_width", "step", "holdout", "seed")}
+    grid = body.model_dump(include={f.name for f in dataclasses.fields(CaptureGrid)})
     n = CaptureGrid(**grid).simulations
     obj = object_json(body.object)
     object_from_json(obj)
