@@ -158,7 +158,7 @@ def validate(
             "sigma_r": sigma_r,
             "sigma_t": sigma_t,
             "seed": seed,
-            "opt.plan_options": {"cs_method": cs_method, "criterion": criterion, "placement": placement},
+            "plan_options": {"cs_method": cs_method, "criterion": criterion, "placement": placement},
             "trials": trials,
             "successes": successes,
             "outcomes": [

@@ -198,6 +198,7 @@ def test_validate_json(cli: typer.Typer) -> None:
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout)
     assert data["trials"] == 2 and data["successes"] == sum(o["success"] for o in data["outcomes"])
+    assert data["plan_options"] == {"cs_method": "ellipsoid", "criterion": "absolute", "placement": "open_centre"}
     assert len(data["outcomes"]) == 2
     for o in data["outcomes"]:
         assert set(o) == {"seed", "success", "reason", "lift_height"}
