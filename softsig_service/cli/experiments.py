@@ -22,6 +22,7 @@ import typer
 from softsig_service.cli import options as opt
 from softsig_service.cli.options import errors_to_exit as _errors
 from softsig_service.errors import InvalidInput, RenderUnavailable
+from softsig_service.experiments.campaign_spec import plan_option_fields
 
 FRAME_SIZE = (640, 480)
 """Width and height [px] of recorded frames."""
@@ -125,7 +126,7 @@ def validate(
         if strategy not in STRATEGIES:
             raise InvalidInput("unknown strategy", field="strategy", value=strategy, choices=STRATEGIES)
         nominal = opt.parse_object(obj, x, y, yaw)
-        options: dict[str, Any] = dict(opt.plan_options(cs_method, criterion, placement))
+        options: dict[str, Any] = dict(plan_option_fields(cs_method, criterion, placement))
         model = opt.read_capture(capture, hand=hand, obj=obj, strategy=strategy)
         if model is not None:
             options["capture"] = model

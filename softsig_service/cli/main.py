@@ -18,7 +18,6 @@ from softsig_service.cli.options import (
     PlacementOption,
     StrategyOption,
     parse_floats,
-    plan_options,
     read_capture,
     text_table,
 )
@@ -27,6 +26,7 @@ from softsig_service.cli.options import errors_to_exit as _errors
 from softsig_service.cli.options import parse_object as _object_arg
 from softsig_service.cli.signatures import signature_app
 from softsig_service.config import Settings
+from softsig_service.experiments.campaign_spec import plan_option_fields
 
 app = typer.Typer(
     help="softsig: closure and stiffness signatures of soft hands, and top-grasp planning.",
@@ -69,7 +69,7 @@ def plan(
             hand=hand, obj=_object_arg(obj, x, y, yaw), strategy=strategy,  # type: ignore[arg-type]
             current_q=q, closing_axis=closing_axis,  # type: ignore[arg-type]
             sigma_r=sigma_r, sigma_t=sigma_t, capture=model,
-            **plan_options(cs_method, criterion, placement),  # type: ignore[arg-type]
+            **plan_option_fields(cs_method, criterion, placement),  # type: ignore[arg-type]
         )  # fmt: skip
         result = Planner().plan(request)
         data = result.to_json_dict()

@@ -79,11 +79,6 @@ PlacementOption = Annotated[
 ]
 
 
-def plan_options(cs_method: str, criterion: str, placement: str) -> dict[str, str]:
-    """The :class:`PlanRequest` fields of the three plan options above (validated by the request)."""
-    return {"cs_method": cs_method, "cs_criterion": criterion, "placement": placement}
-
-
 StrategyOption = Annotated[
     str, typer.Option("--strategy", help="S (bounding box) | C (closure signature) | R (robust; needs --capture)")
 ]

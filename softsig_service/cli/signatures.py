@@ -7,11 +7,12 @@ from typing import Annotated, Any
 
 import typer
 
-from softsig_service.cli.options import CriterionOption, CsMethodOption, HandArgument, PlacementOption, plan_options
+from softsig_service.cli.options import CriterionOption, CsMethodOption, HandArgument, PlacementOption
 from softsig_service.cli.options import emit as _emit
 from softsig_service.cli.options import errors_to_exit as _errors
 from softsig_service.cli.options import parse_object as _object_arg
 from softsig_service.config import Settings
+from softsig_service.experiments.campaign_spec import plan_option_fields
 
 signature_app = typer.Typer(help="Closure and stiffness signatures of a hand.", no_args_is_help=True)
 
@@ -170,7 +171,7 @@ def signature_capture(
     with _errors():
         grid = CaptureGrid(n_theta=n_theta, half_width=half_width, step=step, holdout=holdout)
         the_obj = _object_arg(obj, 0.5, 0.0, 0.0)
-        options = plan_options(cs_method, criterion, placement)
+        options = plan_option_fields(cs_method, criterion, placement)
         model = build_capture_model(hand, the_obj.to_json(), grid, workers=workers, plan_options=dict(options))
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(model.to_json_dict()) + "\n", encoding="utf-8")

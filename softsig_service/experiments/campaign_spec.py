@@ -80,9 +80,15 @@ class TrialSpec:
         return f"c{self.condition}/{self.object}/{self.strategy}/{self.trial}"
 
 
+def plan_option_fields(cs_method: str, criterion: str, placement: str) -> dict[str, str]:
+    """The :class:`~softsig_service.planning.planner.PlanRequest` fields of the closure-signature method, its
+    criterion and the placement, as campaigns and the command line name them (validated by the request)."""
+    return {"cs_method": cs_method, "cs_criterion": criterion, "placement": placement}
+
+
 def plan_options(spec: TrialSpec | CampaignSpec) -> dict[str, Any]:
     """The :class:`~softsig_service.planning.planner.PlanRequest` fields set by a campaign or one of its trials."""
-    return {"cs_method": spec.cs_method, "cs_criterion": spec.criterion, "placement": spec.placement}
+    return plan_option_fields(spec.cs_method, spec.criterion, spec.placement)
 
 
 def trial_seed(seed: int, cell: Sequence[int], trial: int) -> int:
