@@ -214,14 +214,10 @@ def mvee(points: ArrayLike, **options: Unpack[MveeOptions]) -> Ellipsoid:
     return mvee_batch(arr[None], **options)[0]
 
 
-def mvee_batch(
-    points: ArrayLike,
-    *,
-    tol: float = DEFAULT_TOL,
-    max_iter: int = DEFAULT_MAX_ITER,
-    lift_epsilon: float = DEFAULT_LIFT_EPSILON,
-) -> EllipsoidBatch:
+def mvee_batch(points: ArrayLike, **options: Unpack[MveeOptions]) -> EllipsoidBatch:
     """MVEE of each of B point sets ``points`` (B, N, d) [m], vectorised over the batch (see :func:`mvee`)."""
+    full = mvee_params(options)
+    tol, max_iter, lift_epsilon = full["tol"], full["max_iter"], full["lift_epsilon"]
     x = _as_float_array(points)
     _check_params(x, tol, max_iter, lift_epsilon)
     b, n, d = x.shape
