@@ -263,7 +263,10 @@ class CollisionWorld:
         cats: set[str] = set()
         # smallest distances: [arm+hand vs table, arm+hand vs object, hand vs table, hand vs object]
         dmin: list[float | None] = [None, None, None, None]
-        for p, maybe in zip(pairs, may_collide.tolist(), strict=True):
+        maybe_pairs = may_collide.tolist()
+        asked = range(len(pairs)) if distances else np.flatnonzero(may_collide).tolist()
+        for k in asked:
+            p, maybe = pairs[k], maybe_pairs[k]
             if not maybe and not (distances and p.category != "self"):
                 continue
             if maybe and pin.computeCollision(gm, gd, p.index):

@@ -151,6 +151,9 @@ def test_concurrent_plans_from_threads_match_sequential_ones(planner: Planner) -
         for o in ("box", "cylinder")
     ]  # type: ignore[arg-type]
     sequential = [planner.plan(r) for r in requests]
+    # both of strategy C's paths run: the closed-form minimum (SoftHand) and the SQP (the gripper's table constraint)
+    statuses = {p.solver["status"] for p in sequential if p.strategy == "C"}
+    assert "closed_form" in statuses and statuses - {"closed_form"}, statuses
     threads = 8
     start = threading.Barrier(threads)
 
