@@ -204,9 +204,10 @@ class UR5:
         two_pi = 2.0 * math.pi
         k_lo = np.ceil((self.lower - Q) / two_pi - 1e-12)
         k_hi = np.floor((self.upper - Q) / two_pi + 1e-12)
-        valid = np.all(k_lo <= k_hi, axis=1)
-        k = np.clip(np.round((reference - Q) / two_pi), k_lo, k_hi)  # |q + 2 pi k - ref| is convex in k
-        return np.clip(Q + k * two_pi, self.lower, self.upper), valid
+        valid = (k_lo <= k_hi).all(axis=1)
+        # |q + 2 pi k - ref| is convex in k (np.clip costs several times minimum/maximum on these small arrays)
+        k = np.minimum(np.maximum(np.rint((reference - Q) / two_pi), k_lo), k_hi)
+        return np.minimum(np.maximum(Q + k * two_pi, self.lower), self.upper), valid
 
     def random_configuration(self, rng: np.random.Generator) -> FloatArray:
         """A uniformly random configuration [rad] within the limits, restricted to [-pi, pi] per joint."""
@@ -360,7 +361,8 @@ class UR5:
                         pe, re = self.pose_error(self._fk(qw), T)
                 if valid and pe <= position_tolerance and re <= rotation_tolerance:
                     if not any(np.max(np.abs(qw - x[1])) < _SOLUTION_DEDUP for x in solutions):
-                        solutions.append((float(np.linalg.norm(qw - reference)), qw, pe, re))
+                        d = qw - reference
+                        solutions.append((math.sqrt(d @ d), qw, pe, re))
                     return True
             score = pe + 0.1 * re
             if not best_fail or score < best_fail[0][0]:
@@ -374,7 +376,8 @@ class UR5:
             out_of_reach = len(branches) == 0
             wrapped, valid = self._wrap_rows(branches, reference)
             wrapped = wrapped[valid]
-            for i in np.argsort(np.linalg.norm(wrapped - reference, axis=1), kind="stable"):
+            d = wrapped - reference
+            for i in np.argsort(np.sqrt((d * d).sum(axis=1)), kind="stable").tolist():
                 if run(wrapped[i], prewrapped=True) and not exhaustive:
                     break
         # 2. current_q, then the caller's extra seeds

@@ -1,7 +1,9 @@
 """How far the open hand can travel along its approach before it touches the table or the object (coal).
 
 The hand's collision primitives (in the hand frame) are posed by a flange pose ``T_world_hand`` and measured
-against the table (the half-space below z = table_height, as a large thin box) and the object. A straight
+against the table (the plane z = table_height, with the half-space below it) and the object. The distance of a
+box, sphere, capsule or cylinder to the table is the height of its lowest point above the plane, exactly and in
+closed form (negative: that deep below it); the object's distances are coal's. A straight
 approach is advanced conservatively: moving every point of the hand by ``s`` along a unit direction changes
 any distance by at most ``s``, so a step of (distance - margin) never passes through anything.
 """
@@ -17,9 +19,6 @@ from numpy.typing import NDArray
 
 from softsig_service.arm.shapes import HandShape, local_aabb, object_geometry
 from softsig_service.objects import TableObject
-
-TABLE_HALF_THICKNESS = 0.05
-"""[m] the table is a 6 x 6 x 0.1 m box whose top face is the table plane."""
 
 
 def _tf(T: NDArray[np.float64]) -> coal.Transform3s:
@@ -37,11 +36,6 @@ class Descent:
     """``"table"``, ``"object"`` or ``"travel"`` (the full travel was free)."""
     distance: float
     """[m] clearance to the nearest of table and object at the stop."""
-
-
-_TABLE_BOUND_SLACK = 1e-5
-"""[m] the exact height bound of a shape above the table is lowered by this before culling, so that coal's own
-rounding (its GJK tolerance is 1e-6) never drops the nearest shape."""
 
 
 class HandGeometry:
@@ -99,13 +93,12 @@ def _pose(R: NDArray[np.float64], t: NDArray[np.float64]) -> NDArray[np.float64]
 class _Posed:
     """The hand's terms at one orientation R, all at zero translation (add the flange position t).
 
-    ``lowest`` (n,) [m]: world z of each shape's lowest point; ``centres`` (n, 3) [m]: bounding-sphere centres;
-    ``centres_in_object`` (n, 3): the same in the object's primitive axes; ``rotations`` (n, 3, 3) and
+    ``lowest`` [m]: world z of the lowest point of all shapes; ``centres_in_object`` (n, 3) [m]: the shapes'
+    bounding-sphere centres in the object's primitive axes; ``rotations`` (n, 3, 3) and
     ``origins`` (n, 3) [m]: each shape's pose in the world.
     """
 
-    lowest: NDArray[np.float64]
-    centres: NDArray[np.float64]
+    lowest: float
     centres_in_object: NDArray[np.float64]
     rotations: NDArray[np.float64]
     origins: NDArray[np.float64]
@@ -130,13 +123,8 @@ class HandClearance:
         self._centres = self._hand.centres
         self._radii = self._hand.radii
         self._table_height = table_height
-        self._table = coal.Box(6.0, 6.0, 2 * TABLE_HALF_THICKNESS)
-        T_table = np.eye(4)
-        T_table[2, 3] = table_height - TABLE_HALF_THICKNESS
-        self._table_tf = _tf(T_table)
         self._object = None
         self._object_centre = np.zeros(3)
-        self._object_radius = 0.0
         self._object_R = np.eye(3)
         self._object_half = np.zeros(3)
         if obj is not None:
@@ -147,7 +135,6 @@ class HandClearance:
             self._object_R = T_obj[:3, :3]
             self._object_centre = T_obj[:3, 3] + T_obj[:3, :3] @ (0.5 * (lo + hi))
             self._object_half = 0.5 * (hi - lo)
-            self._object_radius = float(geom.aabb_radius)
         self._req = coal.DistanceRequest()
         self._last: tuple[bytes, tuple[float, float]] | None = None  # the last pose asked and its answer
         self._orientations: dict[bytes, _Posed] = {}
@@ -155,29 +142,25 @@ class HandClearance:
     def distances(self, T_world_hand: NDArray[np.float64]) -> tuple[float, float]:
         """(to the table, to the object) [m]; negative inside; +inf for a missing object.
 
-        Exact coal distances, queried only for shapes whose lower bound could beat the best found so far: for the
-        table the exact height of the shape's lowest point above the plane (the table lies inside the half-space
-        below it), for the object the gap between the shape's bounding sphere and the object's bounding box (signed
-        distance in the object's primitive frame) or bounding sphere, whichever is larger. What depends on the
-        hand's orientation alone is computed once per orientation (:class:`_Posed`): a descent only translates.
+        The table's is exact (the lowest point of the hand's primitives); the object's are coal distances, queried
+        only for shapes whose lower bound could beat the best found so far: the gap between the shape's bounding
+        sphere and the object's bounding box (signed distance in the object's primitive frame; the box lies inside
+        the object's bounding sphere, so this is the tighter of the two). What depends on the hand's orientation
+        alone is computed once per orientation (:class:`_Posed`): a descent only translates.
         """
         key = T_world_hand.tobytes()
         if self._last is not None and self._last[0] == key:
             return self._last[1]  # the descent asks again at the pose where it stopped
         posed = self._posed(T_world_hand[:3, :3])
         t = T_world_hand[:3, 3]
-        bound_table = posed.lowest + (t[2] - self._table_height - _TABLE_BOUND_SLACK)
-        poses: dict[int, coal.Transform3s] = {}  # shape poses, built once per call for both queries
-        d_table = self._nearest(posed, t, poses, bound_table, self._table, self._table_tf)
+        d_table = posed.lowest + float(t[2]) - self._table_height
         d_obj = float("inf")
         if self._object is not None:
             shift = t - self._object_centre
-            offset = posed.centres + shift
             excess = np.abs(posed.centres_in_object + shift @ self._object_R) - self._object_half
-            box_sdf = np.linalg.norm(np.maximum(excess, 0.0), axis=1) + np.minimum(excess.max(axis=1), 0.0)
-            gap = np.maximum(box_sdf, np.linalg.norm(offset, axis=1) - self._object_radius)
+            gap = np.linalg.norm(np.maximum(excess, 0.0), axis=1) + np.minimum(excess.max(axis=1), 0.0)
             gap -= self._radii
-            d_obj = self._nearest(posed, t, poses, gap, *self._object)
+            d_obj = self._nearest(posed, t, gap, *self._object)
         self._last = (key, (d_table, d_obj))
         return d_table, d_obj
 
@@ -187,11 +170,11 @@ class HandClearance:
         posed = self._orientations.get(key)
         if posed is None:
             R = np.array(R, dtype=np.float64)
-            lowest = self._hand.lowest_points(_pose(R, np.zeros(3)))
-            centres = self._centres @ R.T
+            lowest = float(self._hand.lowest_points(_pose(R, np.zeros(3))).min())
+            centres_in_object = self._centres @ R.T @ self._object_R
             rotations = np.matmul(R, self._hand.rotations)  # (n, 3, 3), each contiguous
             origins = self._hand.origins @ R.T
-            posed = _Posed(lowest, centres, centres @ self._object_R, rotations, origins)
+            posed = _Posed(lowest, centres_in_object, rotations, origins)
             if len(self._orientations) >= _ORIENTATIONS_KEPT:
                 self._orientations.clear()
             self._orientations[key] = posed
@@ -201,7 +184,6 @@ class HandClearance:
         self,
         posed: _Posed,
         t: NDArray[np.float64],
-        poses: dict[int, coal.Transform3s],
         lower_bounds: NDArray[np.float64],
         other: coal.CollisionGeometry,
         other_tf: coal.Transform3s,
@@ -210,9 +192,7 @@ class HandClearance:
         for k in np.argsort(lower_bounds).tolist():
             if lower_bounds[k] >= best:
                 break
-            tf = poses.get(k)
-            if tf is None:
-                tf = poses[k] = coal.Transform3s(posed.rotations[k], posed.origins[k] + t)
+            tf = coal.Transform3s(posed.rotations[k], posed.origins[k] + t)
             result = coal.distance(self._shapes[k][0], tf, other, other_tf, self._req, coal.DistanceResult())
             best = min(best, result)
         return best

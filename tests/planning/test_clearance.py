@@ -1,4 +1,5 @@
-"""The open hand's clearance to table and object: culled distances equal brute force; the descent stops at contact."""
+"""The open hand's clearance to table and object: culled distances equal brute force (the table's, exact, equal
+coal's within its GJK tolerance); the descent stops at contact."""
 
 from __future__ import annotations
 
@@ -6,14 +7,26 @@ import math
 
 import coal
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from softsig_service.arm.shapes import object_geometry
+from softsig_service.arm.shapes import HandShape, object_geometry
+from softsig_service.geometry.transforms import make_transform, rot_x, rot_y
 from softsig_service.objects import builtin_object
-from softsig_service.planning.clearance import TABLE_HALF_THICKNESS, HandClearance
+from softsig_service.planning.clearance import HandClearance
 from softsig_service.planning.planner import planning_model
 from softsig_service.planning.wrist_pose import hand_rotation
+
+TABLE_HALF_THICKNESS = 0.05
+"""[m] the brute force's table: a 6 x 6 x 0.1 m coal box whose top face is the plane z = 0."""
+
+
+def _assert_equal_brute_force(fast: tuple[float, float], slow: tuple[float, float]) -> None:
+    """Object distances equal to 1e-9 m; the table's within coal's GJK tolerance (its box-to-shape distances
+    differ from the exact ones by up to ~6e-7 m)."""
+    assert abs(fast[0] - slow[0]) <= 1e-6, (fast, slow)
+    assert abs(fast[1] - slow[1]) <= 1e-9, (fast, slow)
 
 
 def _brute_force(hc: HandClearance, T: np.ndarray) -> tuple[float, float]:
@@ -48,9 +61,7 @@ def test_culled_distances_equal_brute_force(
     T = np.eye(4)
     T[:3, :3] = hand_rotation(yaw, roll, pitch)
     T[:3, 3] = (x, y, z)
-    fast = hc.distances(T)
-    slow = _brute_force(hc, T)
-    np.testing.assert_allclose(fast, slow, atol=1e-9)
+    _assert_equal_brute_force(hc.distances(T), _brute_force(hc, T))
 
 
 def test_one_clearance_asked_at_many_orientations_in_turn_equals_brute_force() -> None:
@@ -64,7 +75,26 @@ def test_one_clearance_asked_at_many_orientations_in_turn_equals_brute_force() -
         T = np.eye(4)
         T[:3, :3] = rotations[k]
         T[:3, 3] = (rng.uniform(0.4, 0.6), rng.uniform(-0.1, 0.1), rng.uniform(0.05, 0.3))
-        np.testing.assert_allclose(hc.distances(T), _brute_force(hc, T), atol=1e-9)
+        _assert_equal_brute_force(hc.distances(T), _brute_force(hc, T))
+
+
+@settings(max_examples=30, deadline=None)
+@given(a=st.floats(-math.pi, math.pi), b=st.floats(-math.pi, math.pi), z=st.floats(-0.02, 0.3))
+def test_the_table_distance_is_the_lowest_corner_or_rim(a: float, b: float, z: float) -> None:
+    """Known answers: a box's lowest corner, a cylinder's lowest rim point and a capsule's lowest cap, in closed form
+    for a box tilted about x then y (negative: below the table)."""
+    R = rot_x(a) @ rot_y(b)
+    hx, hy, hz, r, h = 0.02, 0.03, 0.01, 0.015, 0.04
+    for shape, expected in (
+        (HandShape("box", (hx, hy, hz)), np.abs(R[2]) @ (hx, hy, hz)),
+        (HandShape("cylinder", (r, h)), abs(R[2, 2]) * h + r * math.hypot(R[2, 0], R[2, 1])),
+        (HandShape("capsule", (r, h)), abs(R[2, 2]) * h + r),
+        (HandShape("sphere", (r,)), r),
+    ):
+        hc = HandClearance([shape], None, 0.0)
+        d_table, d_obj = hc.distances(make_transform(R, [0.4, 0.1, z]))
+        assert d_table == pytest.approx(z - expected, abs=1e-12), shape.kind
+        assert d_obj == math.inf
 
 
 def test_descent_stops_at_the_margin_on_the_first_obstacle() -> None:
