@@ -204,7 +204,7 @@ class UR5:
         two_pi = 2.0 * math.pi
         k_lo = np.ceil((self.lower - Q) / two_pi - 1e-12)
         k_hi = np.floor((self.upper - Q) / two_pi + 1e-12)
-        valid = (k_lo <= k_hi).all(axis=1)
+        valid = np.asarray((k_lo <= k_hi).all(axis=1))
         # |q + 2 pi k - ref| is convex in k (np.clip costs several times minimum/maximum on these small arrays)
         k = np.minimum(np.maximum(np.rint((reference - Q) / two_pi), k_lo), k_hi)
         return np.minimum(np.maximum(Q + k * two_pi, self.lower), self.upper), valid
