@@ -85,7 +85,7 @@ class WristPoseSolution:
     """Lowest open-hand reference point's height above the table [m]."""
     iterations: int
     solve_time: float
-    """[s]"""
+    """[s] this branch's solve (the closed-form check evaluates both branches at once: its time counts for each)."""
 
 
 def hand_rotation(yaw: Any, roll: Any, pitch: Any, lib: Any = np) -> Any:
@@ -130,7 +130,7 @@ _RAISE = 1e-4
 
 def _solver(n_points: int, method: str = "sqpmethod") -> tuple[ca.Function, int]:
     """This thread's compiled solver for ``n_points`` reference points (built on first use in each thread);
-    ``method="evaluate"`` gives the function ``(x, p) -> (f, g)`` of the same NLP.
+    ``method="evaluate"`` gives the function ``(x, p) -> (f, g)`` of the same NLP, mapped over two columns.
 
     A CasADi solver is not re-entrant (its ``stats()`` are those of the last call made with it), so threads never
     share one: the service's threads plan in parallel without a lock around the NLP.
@@ -167,30 +167,30 @@ def _build_solver(n_points: int, method: str) -> tuple[ca.Function, int]:
     reach = ca.dot(s, s)
     g = ca.vertcat(heights, reach)
     f = align + 1e-3 * (centring + depth) + tilt
-    if method == "evaluate":
-        return ca.Function("wrist_pose_cost", [w, p], [f, g]), n_points
+    if method == "evaluate":  # both yaw branches in one call: columns of x and p
+        return ca.Function("wrist_pose_cost", [w, p], [f, g]).map(2), n_points
     nlp = {"x": w, "p": p, "f": f, "g": g}
     opts = _SQP_OPTIONS if method == "sqpmethod" else _IPOPT_OPTIONS
     return ca.nlpsol("wrist_pose", method, nlp, opts), n_points
 
 
-def _closed_form(u: NDArray[np.float64], pa: NDArray[np.float64], P: NDArray[np.float64],
+def _closed_form(v0: NDArray[np.float64], pa: NDArray[np.float64], P: NDArray[np.float64],
                  c: NDArray[np.float64], a: NDArray[np.float64], table: float, margin: float,
-                 yaw_offset: float) -> NDArray[np.float64]:  # fmt: skip
-    """The untilted pose ``(x, y, z, yaw, 0, 0)`` that aligns the CS with ``a``, puts the placement point over
-    ``c`` and at its height, or as low as the table lets the reference points go."""
-    v0 = hand_rotation(0.0, 0.0, 0.0) @ u
+                 yaw_offset: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:  # fmt: skip
+    """The untilted pose ``(x, y, z, yaw, 0, 0)`` that aligns the CS (``v0``: at yaw 0) with ``a``, puts the
+    placement point over ``c`` and at its height, or as low as the table lets the reference points go; and its
+    rotation."""
     yaw = math.atan2(a[1], a[0]) - math.atan2(v0[1], v0[0]) + yaw_offset
     R = hand_rotation(yaw, 0.0, 0.0)
     t = c - R @ pa
     t[2] = max(c[2] - (R @ pa)[2], table + margin - float((P @ R.T)[:, 2].min()))
-    return np.array([t[0], t[1], t[2], yaw, 0.0, 0.0])
+    return np.array([t[0], t[1], t[2], yaw, 0.0, 0.0]), R
 
 
 def _satisfies(g: NDArray[np.float64], n: int, slack: float = 0.0) -> bool:
     """Whether the constraint values ``g`` (n heights [m], then the squared reach [m^2]) lie within their bounds,
     each widened by ``slack``."""
-    return bool(np.all(g[:n] >= -slack) and REACH[0] ** 2 - slack <= g[n] <= REACH[1] ** 2 + slack)
+    return bool(g[:n].min() >= -slack and REACH[0] ** 2 - slack <= g[n] <= REACH[1] ** 2 + slack)
 
 
 def solve_wrist_pose(
@@ -243,14 +243,18 @@ def solve_wrist_pose_unchecked(
     lbg = [0.0] * n + [REACH[0] ** 2]
     ubg = [ca.inf] * n + [REACH[1] ** 2]
     evaluate, _ = _solver(len(P), "evaluate")
+    v0 = hand_rotation(0.0, 0.0, 0.0) @ u
+    closed = [_closed_form(v0, pa, P, c, a, table_height, margin, offset) for offset in (0.0, math.pi)]
+    t0 = time.perf_counter()
+    f_closed, g_closed = evaluate(np.column_stack([x for x, _ in closed]), np.column_stack([params, params]))
+    f_closed, g_closed = f_closed.full().ravel(), g_closed.full()
+    t_closed = time.perf_counter() - t0  # both branches' check (counted for each)
     out = []
-    for offset in (0.0, math.pi):
-        x_closed = _closed_form(u, pa, P, c, a, table_height, margin, offset)
+    for k, (x_closed, R_closed) in enumerate(closed):
         t0 = time.perf_counter()
-        f_closed, g_closed = evaluate(x_closed, params)
-        sol: dict[str, Any] = {"x": x_closed, "g": g_closed}
+        w, R, g = x_closed, R_closed, g_closed[:, k]
         stats: dict[str, Any] = {"success": True, "return_status": "closed_form", "iter_count": 0}
-        if not (float(f_closed) <= CLOSED_FORM_COST and _satisfies(np.asarray(g_closed).ravel(), n)):
+        if not (f_closed[k] <= CLOSED_FORM_COST and _satisfies(g, n)):
             x0 = x_closed.copy()
             x0[2] += _RAISE
             sol = solver(x0=x0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
@@ -259,15 +263,14 @@ def solve_wrist_pose_unchecked(
                 fallback, _ = _solver(len(P), "ipopt")
                 sol = fallback(x0=x0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
                 stats = fallback.stats()
-        elapsed = time.perf_counter() - t0
-        w = np.asarray(sol["x"]).ravel()
-        R = hand_rotation(w[3], w[4], w[5])
+            w, g = sol["x"].full().ravel(), sol["g"].full().ravel()
+            R = hand_rotation(w[3], w[4], w[5])
+        elapsed = t_closed + time.perf_counter() - t0
         T = np.eye(4)
         T[:3, :3], T[:3, 3] = R, w[:3]
         v = R @ u
         err = math.asin(min(1.0, abs(v[0] * a[1] - v[1] * a[0]) / max(np.linalg.norm(v[:2]), 1e-12)))
         anchor = w[:3] + R @ pa
-        g = np.asarray(sol["g"]).ravel()
         feasible = _satisfies(g, n, slack=1e-6)
         status = str(stats.get("return_status", ""))
         centring = float(np.linalg.norm(anchor[:2] - c[:2]))

@@ -19,7 +19,7 @@ def _sqp(model_name: str, obj_center: np.ndarray, closing: np.ndarray, offset: f
     u = model.signature.axis / np.linalg.norm(model.signature.axis)
     pa, P = model.placement_point("C", "open_centre"), model.points_open
     a = closing[:2] / np.linalg.norm(closing[:2])
-    x0 = wp._closed_form(u, pa, P, obj_center, a, 0.0, 0.005, offset)
+    x0, _ = wp._closed_form(wp.hand_rotation(0.0, 0.0, 0.0) @ u, pa, P, obj_center, a, 0.0, 0.005, offset)
     x0[2] += 1e-4
     solver, n = wp._solver(len(P))
     params = np.concatenate([u, pa, P.reshape(-1), obj_center, a, [0.0, 0.005]])
