@@ -46,17 +46,32 @@ def _plan_hand(ctx: AppContext, body: PlanIn) -> repo.HandRecord:
         raise InvalidInput("unknown hand", field="hand", value=body.hand, choices=exc.choices) from None
 
 
-async def _ensure_planning_model(ctx: AppContext, hand: repo.HandRecord, body: PlanIn) -> None:
-    """Build the hand's planning model (it simulates the hand's closure) in the compute pool, under its time
-    limit, unless this process has it already; never in the request's thread."""
-    from softsig_service.planning import build_planning_model, cached_planning_model, remember_planning_model
+def _model_key(hand: repo.HandRecord, body: PlanIn) -> tuple[str, str, None, str]:
+    """The arguments that name the hand's planning model for ``body`` (manifest, CS method, settings, criterion)."""
+    return (hand.manifest_path, body.cs_method, None, body.cs_criterion)
 
-    key = (hand.manifest_path, body.cs_method, None, body.cs_criterion)
-    if cached_planning_model(*key) is None:
-        model = await ctx.pool.run(
-            build_planning_model, *key, what="building the hand's planning model (its closure)", field="hand"
-        )
-        remember_planning_model(model, *key)
+
+async def _build_planning_model(ctx: AppContext, hand: repo.HandRecord, body: PlanIn) -> None:
+    """Build the hand's planning model (it simulates the hand's closure) in the compute pool, under its time
+    limit; never in the request's thread."""
+    from softsig_service.planning import build_planning_model, remember_planning_model
+
+    key = _model_key(hand, body)
+    model = await ctx.pool.run(
+        build_planning_model, *key, what="building the hand's planning model (its closure)", field="hand"
+    )
+    remember_planning_model(model, *key)
+
+
+def _plan_if_ready(ctx: AppContext, body: PlanIn) -> tuple[repo.HandRecord, dict[str, Any] | None]:
+    """The hand of ``body`` and, when this process has its planning model already, the plan (one trip to the
+    threadpool for both); None when the model must be built first."""
+    from softsig_service.planning import cached_planning_model
+
+    hand = _plan_hand(ctx, body)
+    if cached_planning_model(*_model_key(hand, body)) is None:
+        return hand, None
+    return hand, make_plan(ctx, body, hand)
 
 
 def _shape(obj: dict[str, Any]) -> dict[str, Any]:
@@ -159,9 +174,10 @@ def _plan_out(rec: repo.PlanRecord) -> dict[str, Any]:
 async def create_plan(ctx: Ctx, body: PlanIn, response: Response) -> dict[str, Any]:
     """Plan a UR5 top grasp of an object with strategy S, C or R; the plan (``success`` may be false, with
     ``reasons``): 201 with ``Location`` when stored, 200 with ``store: false`` (nothing is created)."""
-    hand = await run_in_threadpool(_plan_hand, ctx, body)
-    await _ensure_planning_model(ctx, hand, body)
-    data = await run_in_threadpool(make_plan, ctx, body, hand)
+    hand, data = await run_in_threadpool(_plan_if_ready, ctx, body)
+    if data is None:
+        await _build_planning_model(ctx, hand, body)
+        data = await run_in_threadpool(make_plan, ctx, body, hand)
     if data.get("id"):
         response.headers["Location"] = f"/v1/plans/{data['id']}"
     else:
