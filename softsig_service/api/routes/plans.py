@@ -30,6 +30,7 @@ from softsig_service.objects.schema import object_json
 from softsig_service.services.plan_image import render_plan_png
 from softsig_service.services.serialize import to_jsonable, vectors_as_objects
 from softsig_service.signatures.capture import CaptureModel
+from softsig_service.signatures.closure_types import Criterion
 
 router = APIRouter(prefix="/v1", tags=["plans"])
 PlanId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="a stored plan's id")]
@@ -46,7 +47,7 @@ def _plan_hand(ctx: AppContext, body: PlanIn) -> repo.HandRecord:
         raise InvalidInput("unknown hand", field="hand", value=body.hand, choices=exc.choices) from None
 
 
-def _model_key(hand: repo.HandRecord, body: PlanIn) -> tuple[str, str, None, str]:
+def _model_key(hand: repo.HandRecord, body: PlanIn) -> tuple[str, str, None, Criterion]:
     """The arguments that name the hand's planning model for ``body`` (manifest, CS method, settings, criterion)."""
     return (hand.manifest_path, body.cs_method, None, body.cs_criterion)
 
