@@ -7,10 +7,10 @@ The server runs on a free loopback port with a fresh data folder (SQLite registr
 keeps one HTTP/1.1 connection (httpx) and posts ``POST /v1/plans`` for the built-in box at random poses
 (x in [0.4, 0.6] m, y in [-0.15, 0.15] m, yaw in [-pi, pi]; fixed seed) until ``--requests`` are done or
 ``--seconds`` have passed. Printed per run: requests per second, p50/p90/p99 latency [ms] measured by the client,
-and the server's own split from its Prometheus metrics: mean planner time per plan and mean time in the HTTP
-stack per request (so the rest is queueing and the client), and the CPU used by the client process and by the
-server process over the run, in cores. Runs: concurrency 1 (the latency of one request alone), then
-``--concurrency`` with plans stored and with ``store: false``.
+the mean planner time per plan (from each plan's ``timing``) and, with one service process, the mean time in
+the HTTP stack per request from its Prometheus metrics (so the rest is queueing and the client), and the CPU
+used by the client process and by the server's processes over the run, in cores. Runs: concurrency 1 (the
+latency of one request alone), then ``--concurrency`` with plans stored and with ``store: false``.
 """
 
 from __future__ import annotations
@@ -104,7 +104,15 @@ def wait_idle(pid: int, *, below: float = 0.05, timeout: float = 120.0) -> None:
 
 
 def run(
-    url: str, *, n: int, concurrency: int, seconds: float, strategy: str, store: bool, server_pid: int
+    url: str,
+    *,
+    n: int,
+    concurrency: int,
+    seconds: float,
+    strategy: str,
+    store: bool,
+    server_pid: int,
+    single_process: bool,
 ) -> dict[str, Any]:
     rng = random.Random(7)
     bodies = [
@@ -119,6 +127,7 @@ def run(
         for _ in range(n)
     ]  # fmt: skip
     latencies: list[float] = []
+    planner: list[float] = []  # [s] the planner's own time, from each plan's timing
     failures: list[str] = []
     lock = threading.Lock()
     next_index = 0
@@ -139,6 +148,7 @@ def run(
                 with lock:
                     if r.status_code == (201 if store else 200):  # a plan not stored is 200 OK
                         latencies.append(dt)
+                        planner.append(r.json()["timing"]["total"])
                     else:
                         failures.append(f"{r.status_code} {r.text[:200]}")
 
@@ -153,8 +163,6 @@ def run(
     wall = time.perf_counter() - t0
     cpu_client, cpu_server = time.process_time() - cpu_client, process_cpu_seconds(server_pid) - cpu_server
     after = httpx.get(f"{url}/metrics").text
-    plan_s = [a - b for a, b in zip(metric_sum_count(after, "softsig_plan_seconds"),
-                                    metric_sum_count(before, "softsig_plan_seconds"), strict=True)]  # fmt: skip
     http_s = [
         a - b
         for a, b in zip(
@@ -179,8 +187,9 @@ def run(
         "p90": pct(90),
         "p99": pct(99),
         "mean": statistics.fmean(lat) * 1e3 if lat else float("nan"),
-        "planner_mean": plan_s[0] / plan_s[1] * 1e3 if plan_s[1] else float("nan"),
-        "server_mean": http_s[0] / http_s[1] * 1e3 if http_s[1] else float("nan"),
+        "planner_mean": statistics.fmean(planner) * 1e3 if planner else float("nan"),
+        # one process answers both scrapes only when there is one: with several, the two may come from different ones
+        "server_mean": http_s[0] / http_s[1] * 1e3 if http_s[1] > 0 and single_process else float("nan"),
         "client_cpu": cpu_client / wall if wall > 0 else float("nan"),
         "server_cpu": cpu_server / wall if wall > 0 else float("nan"),
     }
@@ -199,14 +208,23 @@ def main() -> None:
         try:
             pid = proc.pid
             wait_idle(pid)
-            run(url, n=30, concurrency=2, seconds=30, strategy=args.strategy, store=True, server_pid=pid)  # warm-up
+            run(
+                url,
+                n=30,
+                concurrency=2,
+                seconds=30,
+                strategy=args.strategy,
+                store=True,
+                server_pid=pid,
+                single_process=args.workers == 1,
+            )  # warm-up
             rows = [
                 run(url, n=max(50, args.requests // 4), concurrency=1, seconds=args.seconds, strategy=args.strategy,
-                    store=True, server_pid=pid),
+                    store=True, server_pid=pid, single_process=args.workers == 1),
                 run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
-                    strategy=args.strategy, store=True, server_pid=pid),
+                    strategy=args.strategy, store=True, server_pid=pid, single_process=args.workers == 1),
                 run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
-                    strategy=args.strategy, store=False, server_pid=pid),
+                    strategy=args.strategy, store=False, server_pid=pid, single_process=args.workers == 1),
             ]  # fmt: skip
         finally:
             proc.send_signal(signal.SIGINT)
@@ -224,9 +242,9 @@ def main() -> None:
               f"{r['server_mean']:9.2f} {r['client_cpu']:10.2f} {r['server_cpu']:10.2f}")  # fmt: skip
         if r["first_failure"]:
             print(f"     first failure: {r['first_failure']}")
-    print("planner ms: mean planner time per plan (server metric softsig_plan_seconds); server ms: mean time the")
-    print("request spent in the server's HTTP stack (softsig_http_request_duration_seconds, route /v1/plans); with")
-    print("several service processes both come from the process that answered the /metrics scrapes.")
+    print("planner ms: mean planner time per plan (each plan's timing.total); server ms: mean time the request")
+    print("spent in the server's HTTP stack (softsig_http_request_duration_seconds, route /v1/plans), shown with one")
+    print("service process only (with several, two /metrics scrapes may be answered by different processes).")
     print("client CPU / server CPU: CPU time of the client process / of every server process over the run's wall")
     print("time, in cores (on a 2-core machine the client's share is taken from the server).")
 

@@ -32,13 +32,17 @@ def quat_normalize(q_wxyz: ArrayLike, field: str = "quaternion") -> FloatArray:
     n = float(np.linalg.norm(q))
     if n < ZERO_NORM:
         raise InvalidInput("zero quaternion does not describe a rotation", field=field, value=q.tolist())
-    q = q / n
+    return _canonical_sign(q / n)
+
+
+def _canonical_sign(q: FloatArray) -> FloatArray:
+    """The unit quaternion ``q`` or ``-q``, whichever has ``w > 0`` (for ``w == 0``: the first non-zero of x, y, z)."""
     if q[0] < 0.0:
-        q = -q
-    elif q[0] == 0.0:
+        return -q
+    if q[0] == 0.0:
         nz = np.flatnonzero(q[1:])
         if nz.size and q[1 + nz[0]] < 0.0:
-            q = -q
+            return -q
     return q
 
 
@@ -56,7 +60,11 @@ def xyzw_to_wxyz(q_xyzw: ArrayLike) -> FloatArray:
 
 def quat_to_wire(q_wxyz: ArrayLike) -> dict[str, float]:
     """Wire form ``{"x", "y", "z", "w"}`` (geometry_msgs/Quaternion) of a wxyz quaternion, normalised."""
-    q = quat_normalize(q_wxyz)
+    return unit_quat_to_wire(quat_normalize(q_wxyz))
+
+
+def unit_quat_to_wire(q: FloatArray) -> dict[str, float]:
+    """:func:`quat_to_wire` of a quaternion that is unit and canonical already (no checks, no normalisation)."""
     return {"x": float(q[1]), "y": float(q[2]), "z": float(q[3]), "w": float(q[0])}
 
 
@@ -109,7 +117,12 @@ def matrix_to_quat(R: ArrayLike, field: str = "rotation") -> FloatArray:
 
     Raises :class:`InvalidInput` when ``R`` is not a proper rotation (within 1e-6).
     """
-    M = check_rotation(R, field=field)
+    return rotation_to_quat(check_rotation(R, field=field))
+
+
+def rotation_to_quat(M: FloatArray) -> FloatArray:
+    """:func:`matrix_to_quat` of a ``(3, 3)`` float array the caller knows to be a proper rotation (the planner's
+    own poses): nothing is checked."""
     tr = M[0, 0] + M[1, 1] + M[2, 2]
     diag = (M[0, 0], M[1, 1], M[2, 2])
     if tr >= max(diag):
@@ -124,7 +137,8 @@ def matrix_to_quat(R: ArrayLike, field: str = "rotation") -> FloatArray:
     else:
         s = 2.0 * math.sqrt(max(1.0 + M[2, 2] - M[0, 0] - M[1, 1], 0.0))
         q = [(M[1, 0] - M[0, 1]) / s, (M[0, 2] + M[2, 0]) / s, (M[1, 2] + M[2, 1]) / s, 0.25 * s]
-    return quat_normalize(q, field=field)
+    qa = np.array(q, dtype=np.float64)
+    return _canonical_sign(qa / math.sqrt(float(qa @ qa)))
 
 
 def quat_angle_between(a_wxyz: ArrayLike, b_wxyz: ArrayLike) -> float:

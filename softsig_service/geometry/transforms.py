@@ -38,7 +38,7 @@ from softsig_service.geometry.quaternions import (
     quat_from_wire,
     quat_normalize,
     quat_to_matrix,
-    quat_to_wire,
+    unit_quat_to_wire,
     wxyz_to_xyzw,
     xyzw_to_wxyz,
 )
@@ -193,6 +193,17 @@ def rotation(T: ArrayLike) -> FloatArray:
 # ----------------------------------------------------------------------------------------------------------
 
 
+def pose_wire(position: FloatArray, quaternion: FloatArray, frame_id: str) -> dict[str, Any]:
+    """Wire form of a pose (:meth:`Pose.to_wire`) from a ``(3,)`` position [m] and a unit, canonical wxyz
+    quaternion (e.g. :func:`~softsig_service.geometry.quaternions.rotation_to_quat`'s); nothing is checked."""
+    p = position
+    return {
+        "frame_id": frame_id,
+        "position": {"x": float(p[0]), "y": float(p[1]), "z": float(p[2])},
+        "orientation": unit_quat_to_wire(quaternion),
+    }
+
+
 def _readonly(a: FloatArray) -> FloatArray:
     a = a.copy()
     a.setflags(write=False)
@@ -270,12 +281,7 @@ class Pose:
 
     def to_wire(self) -> dict[str, Any]:
         """Wire form ``{"frame_id", "position": {"x","y","z"}, "orientation": {"x","y","z","w"}}``."""
-        p = self.position
-        return {
-            "frame_id": self.frame_id,
-            "position": {"x": float(p[0]), "y": float(p[1]), "z": float(p[2])},
-            "orientation": quat_to_wire(self.quaternion),
-        }
+        return pose_wire(self.position, self.quaternion, self.frame_id)
 
     def matrix(self) -> FloatArray:
         """The 4x4 homogeneous transform ``T_frame_id_child`` of this pose."""

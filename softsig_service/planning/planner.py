@@ -37,8 +37,8 @@ from softsig_service.arm.ur5 import HOME_Q, UR5, load_ur5
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.checks import as_finite_array
-from softsig_service.geometry.quaternions import matrix_to_quat
-from softsig_service.geometry.transforms import Pose
+from softsig_service.geometry.quaternions import rotation_to_quat
+from softsig_service.geometry.transforms import pose_wire
 from softsig_service.objects import TableObject
 from softsig_service.planning.clearance import HandClearance, HandGeometry
 from softsig_service.planning.hand_model import (
@@ -139,7 +139,7 @@ class GraspPlan:
         def pose(T: NDArray[np.float64] | None) -> dict[str, Any] | None:
             if T is None:
                 return None
-            return Pose(position=T[:3, 3], quaternion=matrix_to_quat(T[:3, :3]), frame_id="base_link").to_wire()
+            return pose_wire(T[:3, 3], rotation_to_quat(T[:3, :3]), "base_link")  # the planner's own rotations
 
         return {
             "success": self.success,

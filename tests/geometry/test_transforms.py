@@ -261,3 +261,20 @@ def test_matrix_to_quat_near_pi(theta: float) -> None:
     for axis in ([1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [1.0, 1.0, 0]):
         R = tf.axis_angle_to_matrix(axis, theta)
         assert np.allclose(qt.quat_to_matrix(qt.matrix_to_quat(R)), R, atol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0), st.floats(-1.0, 1.0))
+def test_the_unchecked_pose_wire_equals_the_checked_one(seed: int, x: float, y: float, z: float) -> None:
+    """The planner's unchecked path (rotation_to_quat, pose_wire) writes what Pose.from_matrix(...).to_wire() writes,
+    to rounding, and its quaternion is unit with w >= 0 and gives back the rotation."""
+    R = Rotation.random(random_state=seed).as_matrix()
+    T = tf.make_transform(R, [x, y, z])
+    q = qt.rotation_to_quat(R)
+    assert abs(float(np.linalg.norm(q)) - 1.0) <= 1e-15 and q[0] >= 0.0
+    np.testing.assert_allclose(qt.quat_to_matrix(q), R, atol=1e-12)
+    fast = tf.pose_wire(T[:3, 3], q, "base_link")
+    slow = tf.Pose.from_matrix(T, "base_link").to_wire()
+    assert fast["frame_id"] == slow["frame_id"] and fast["position"] == slow["position"]
+    for k in "xyzw":
+        assert fast["orientation"][k] == pytest.approx(slow["orientation"][k], abs=1e-15)
