@@ -80,7 +80,8 @@ class CheckOptions(TypedDict, total=False):
     """Options of a collision check (:meth:`CollisionWorld.check`); every one may be left out.
 
     ``margin``, ``table_margin``, ``self_margin``: security margins [m] of the object, table and self pairs
-    (default: the world's); ``ignore_hand_object``: leave out the hand-shape/object pairs (default False);
+    (default: the world's); ``ignore_hand_object``, ``ignore_hand_table``: leave out the hand-shape/object or
+    hand-shape/table pairs (default False; e.g. where the caller has shown those shapes clear already);
     ``check_table``, ``check_object``, ``check_self``: which pair groups to check (default all);
     ``distances``: also compute the smallest distances [m] to the table and the object (default True).
     """
@@ -89,6 +90,7 @@ class CheckOptions(TypedDict, total=False):
     table_margin: float | None
     self_margin: float | None
     ignore_hand_object: bool
+    ignore_hand_table: bool
     check_table: bool
     check_object: bool
     check_self: bool
@@ -213,14 +215,19 @@ class CollisionWorld:
         self._w.applied_margins = margins
 
     def _selected(
-        self, check_table: bool, check_object: bool, check_self: bool, ignore_hand_object: bool
-    ) -> tuple[list[PairInfo], NDArray[np.intp]]:
+        self, check_table: bool, check_object: bool, check_self: bool, ignore_hand_object: bool,
+        ignore_hand_table: bool,
+    ) -> tuple[list[PairInfo], NDArray[np.intp]]:  # fmt: skip
         """The pairs the flags select, and their indices (built once per combination of flags)."""
-        key = (check_table, check_object, check_self, ignore_hand_object)
+        key = (check_table, check_object, check_self, ignore_hand_object, ignore_hand_table)
         hit = self._w.selections.get(key)
         if hit is None:
             wanted = {"table": check_table, "object": check_object, "self": check_self}
-            sel = [p for p in self._w.pairs if wanted[p.category] and not (ignore_hand_object and p.hand_object)]
+            sel = [
+                p for p in self._w.pairs
+                if wanted[p.category] and not (ignore_hand_object and p.hand_object)
+                and not (ignore_hand_table and p.hand and p.category == "table")
+            ]  # fmt: skip
             hit = self._w.selections[key] = (sel, np.array([p.index for p in sel], dtype=np.intp))
         return hit
 
@@ -233,8 +240,8 @@ class CollisionWorld:
 
     def _options(self, o: CheckOptions) -> tuple[tuple[list[PairInfo], NDArray[np.intp]], dict[str, float], bool]:
         """The pairs selected, the margins [m] and whether distances are asked, from a call's options."""
-        selection = self._selected(o.get("check_table", True), o.get("check_object", True),
-                                   o.get("check_self", True), o.get("ignore_hand_object", False))  # fmt: skip
+        selection = self._selected(o.get("check_table", True), o.get("check_object", True), o.get("check_self", True),
+                                   o.get("ignore_hand_object", False), o.get("ignore_hand_table", False))  # fmt: skip
         return (
             selection,
             self._margins(o.get("margin"), o.get("table_margin"), o.get("self_margin")),

@@ -60,7 +60,7 @@ class WorldModel:
     names: list[str]
     obj: tuple[coal.CollisionGeometry, FloatArray] | None
     key: tuple[object, ...] | None
-    selections: dict[tuple[bool, bool, bool, bool], tuple[list[PairInfo], NDArray[np.intp]]] = field(
+    selections: dict[tuple[bool, bool, bool, bool, bool], tuple[list[PairInfo], NDArray[np.intp]]] = field(
         default_factory=dict
     )
     applied_margins: dict[str, float] = field(default_factory=dict)

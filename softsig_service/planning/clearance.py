@@ -56,6 +56,8 @@ class HandGeometry:
         self.origins = np.array([T[:3, 3] for _, T in self.shapes]).reshape(n, 3)
         self.centres = np.array([T[:3, 3] + T[:3, :3] @ g.aabb_center for g, T in self.shapes]).reshape(n, 3)
         self.radii = np.array([g.aabb_radius for g, _ in self.shapes])
+        self.extent = float(np.max(np.linalg.norm(self.centres, axis=1) + self.radii)) if n else 0.0
+        """[m] how far the hand reaches from the flange's origin (bounding spheres)."""
         self.half_box = np.zeros((n, 3))
         self.disc = np.zeros(n)
         self.ball = np.zeros(n)
@@ -138,6 +140,11 @@ class HandClearance:
         self._req = coal.DistanceRequest()
         self._last: tuple[bytes, tuple[float, float]] | None = None  # the last pose asked and its answer
         self._orientations: dict[bytes, _Posed] = {}
+
+    @property
+    def extent(self) -> float:
+        """[m] how far the hand reaches from the flange's origin (:attr:`HandGeometry.extent`)."""
+        return self._hand.extent
 
     def distances(self, T_world_hand: NDArray[np.float64]) -> tuple[float, float]:
         """(to the table, to the object) [m]; negative inside; +inf for a missing object.

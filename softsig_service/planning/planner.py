@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from softsig_service.arm.collision import CollisionWorld
-from softsig_service.arm.ur5 import HOME_Q, UR5, load_ur5
+from softsig_service.arm.ur5 import HOME_Q, POSITION_TOLERANCE, ROTATION_TOLERANCE, UR5, load_ur5
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.checks import as_finite_array
@@ -57,6 +57,8 @@ from softsig_service.signatures.closure_types import CRITERIA, Criterion
 START_HEIGHT = 0.5
 """[m] the descent starts this far above the object's centre along the approach."""
 APPROACH_WAYPOINTS = 4
+GJK_SLACK = 1e-6
+"""[m] what coal's distances may be off by (its GJK tolerance)."""
 
 
 @dataclass(frozen=True)
@@ -172,6 +174,8 @@ class _Candidate:
     ik_residual: float | None = None
     clearance: float | None = None
     distance: float = math.inf
+    approach_clear: bool = False
+    """The descent showed the hand clear of table and object all along the approach (see ``Planner._place``)."""
 
 
 class Planner:
@@ -343,7 +347,13 @@ class Planner:
         return c.reasons
 
     def _place(self, c: _Candidate, clearance: HandClearance, req: PlanRequest, center: NDArray[np.float64]) -> None:
-        """Descend along the approach from high above to the grasp pose; set the pre-grasp."""
+        """Descend along the approach from high above to the grasp pose; set the pre-grasp.
+
+        The descent advances conservatively, so every pose it passed keeps the hand ``margin`` [m] clear of table
+        and object. When the pre-grasp lies on that stretch, so does the whole straight approach, and the
+        approach's arm configurations need not check the hand's pairs with table and object again
+        (``approach_clear``), provided the margin exceeds what the IK may leave (its position tolerance, and its
+        rotation tolerance times the hand's reach from the flange) and coal's own tolerance."""
         direction = c.T[:3, 2]
         T_top = c.T.copy()
         T_top[:3, 3] -= direction * ((c.T[:3, 3] - center) @ direction + START_HEIGHT)
@@ -356,6 +366,8 @@ class Planner:
         c.clearance = descent.distance
         c.T_pre = c.T.copy()
         c.T_pre[:3, 3] -= direction * req.approach_distance
+        ik_slack = POSITION_TOLERANCE + ROTATION_TOLERANCE * clearance.extent
+        c.approach_clear = descent.travel >= req.approach_distance and req.margin > ik_slack + GJK_SLACK
 
     def _solve_grasp(self, c: _Candidate, q_now: NDArray[np.float64]) -> None:
         ik = self.ur5.solve_ik_unchecked(c.T, q_now)
@@ -394,7 +406,9 @@ class Planner:
         return path
 
     def _check(self, c: _Candidate, world: CollisionWorld, path: list[NDArray[np.float64]]) -> None:
-        report = world.check_waypoints(np.array(path), distances=False)
+        report = world.check_waypoints(
+            np.array(path), distances=False, ignore_hand_object=c.approach_clear, ignore_hand_table=c.approach_clear
+        )
         if report.in_collision:
             c.reasons.extend(report.reasons)
 

@@ -86,6 +86,10 @@ def test_flange_driven_into_the_table_is_caught(ur5: UR5, q_above: np.ndarray) -
     assert ("hand:finger_a", "table") in rep.pairs and ("hand:finger_b", "table") in rep.pairs
     assert rep.min_distance_hand_table == pytest.approx(0.05 - HAND_REACH, abs=2e-3)
     assert not bare.check(q_hand).in_collision  # the bare flange clears the table there
+    # a caller that has shown the hand clear of the table may leave its pairs out; the arm's stay
+    assert not world.check(q_hand, ignore_hand_table=True).in_collision
+    rep = world.check(np.zeros(6), ignore_hand_table=True)  # the wrist on the table is still caught
+    assert rep.reasons == [REASON_TABLE] and all(not a.startswith("hand:") for a, _ in rep.pairs)
 
 
 def test_q_zero_lies_on_the_table(ur5: UR5) -> None:

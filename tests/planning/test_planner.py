@@ -230,3 +230,28 @@ def test_the_cs_criterion_reaches_the_plan(planner: Planner) -> None:
     plan = planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy="C", cs_criterion="relative"))
     assert not plan.success and "alignment_impossible" in plan.reasons
     assert plan.solver["cs_criterion"] == "relative"
+
+
+def test_the_approach_the_descent_cleared_is_clear_under_the_full_check(planner: Planner) -> None:
+    """The planner leaves out the hand's pairs with table and object on the approach when its descent has shown
+    them clear: every such approach, checked again with every pair, is collision-free."""
+    rng = np.random.default_rng(5)
+    skipped = 0
+    for k in range(24):
+        obj = builtin_object(("box", "apple", "cylinder")[k % 3]).with_pose(
+            rng.uniform(0.35, 0.6), rng.uniform(-0.25, 0.25), rng.uniform(-math.pi, math.pi)
+        )
+        req = PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy=("S", "C")[k % 2])  # type: ignore[arg-type]
+        plan = planner.plan(req)
+        if not plan.success:
+            continue
+        model = planning_model(req.hand)
+        world = planner._world(model, obj.table_height)
+        world.set_object(obj.primitive(), obj.primitive_pose)
+        q_pre, q = np.asarray(plan.pre_grasp_joint_positions), np.asarray(plan.joint_positions)
+        path = q_pre + np.linspace(0.0, 1.0, 9)[:, None] * (q - q_pre)  # the approach, finer than planned
+        report = world.check_waypoints(path, distances=True)
+        assert not report.in_collision, (k, report.pairs)
+        assert report.min_distance_hand_object is not None and report.min_distance_hand_object >= req.margin - 1e-4
+        skipped += 1
+    assert skipped >= 15
