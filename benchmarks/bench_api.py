@@ -2,6 +2,8 @@
 
 Run: .venv/bin/python benchmarks/bench_api.py [--requests 400] [--concurrency 8] [--seconds 60] [--strategy C]
      [--workers N]   (service processes, default: every CPU)
+     .venv/bin/python benchmarks/bench_api.py --per-request --workers 1 --requests 300 --strategy S
+                     (server CPU per request, one at a time, beside a cheap route and a rejected body)
 
 The server runs on a free loopback port with a fresh data folder (SQLite registry inside). Each client thread
 keeps one HTTP/1.1 connection (httpx) and posts ``POST /v1/plans`` for the built-in box at random poses
@@ -195,6 +197,34 @@ def run(
     }
 
 
+def per_request(url: str, server_pid: int, n: int, strategy: str) -> None:
+    """Print wall time and server CPU [ms] per request, one request at a time, for a cheap route, a request that
+    fails validation, and plans not stored and stored: what the HTTP stack costs beside the planner."""
+    rng = random.Random(11)
+
+    def body(store: bool) -> dict[str, Any]:
+        pose = {"x": rng.uniform(0.4, 0.6), "y": rng.uniform(-0.15, 0.15), "yaw": rng.uniform(-math.pi, math.pi)}
+        return {"hand": "pisa_iit_softhand", "strategy": strategy, "store": store,
+                "object": {"kind": "builtin", "name": "box", "pose": pose}}  # fmt: skip
+
+    with httpx.Client(base_url=url, headers={"X-API-Key": KEY}, timeout=30) as client:
+        cases = (
+            ("GET /healthz", lambda: client.get("/healthz")),
+            ("POST /v1/plans, invalid body", lambda: client.post("/v1/plans", json={"hand": "x"})),
+            ("POST /v1/plans, not stored", lambda: client.post("/v1/plans", json=body(False))),
+            ("POST /v1/plans, stored", lambda: client.post("/v1/plans", json=body(True))),
+        )
+        print(f"one request at a time, {n} each, strategy {strategy}")
+        print(f"{'request':30s} {'wall ms':>8} {'server CPU ms':>13} {'client CPU ms':>13}")
+        for name, call in cases:
+            cpu_server, cpu_client, t0 = process_cpu_seconds(server_pid), time.process_time(), time.perf_counter()
+            for _ in range(n):
+                call()
+            wall = time.perf_counter() - t0
+            cpu_server, cpu_client = process_cpu_seconds(server_pid) - cpu_server, time.process_time() - cpu_client
+            print(f"{name:30s} {wall / n * 1e3:8.2f} {cpu_server / n * 1e3:13.2f} {cpu_client / n * 1e3:13.2f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--requests", type=int, default=400, help="requests per run")
@@ -202,6 +232,9 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0, help="time cap per run [s]")
     parser.add_argument("--strategy", choices=("S", "C"), default="C")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="softsig serve --workers")
+    parser.add_argument(
+        "--per-request", action="store_true", help="instead: wall time and server CPU per request, one at a time"
+    )
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp:
         proc, url = start_server(Path(tmp), args.workers)
@@ -218,6 +251,9 @@ def main() -> None:
                 server_pid=pid,
                 single_process=args.workers == 1,
             )  # warm-up
+            if args.per_request:
+                per_request(url, pid, args.requests, args.strategy)
+                return
             rows = [
                 run(url, n=max(50, args.requests // 4), concurrency=1, seconds=args.seconds, strategy=args.strategy,
                     store=True, server_pid=pid, single_process=args.workers == 1),
