@@ -60,7 +60,8 @@ def plan(
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
 ) -> None:
     """Plan a UR5 top grasp of an object on the table with strategy S, C or R."""
-    from softsig_service.planning.planner import Planner, PlanRequest
+    from softsig_service.planning.planner import Planner
+    from softsig_service.planning.request import PlanRequest
 
     with _errors():
         q = parse_floats(current_q, 6, "current_q") if current_q is not None else None

@@ -124,7 +124,7 @@ class CampaignSpec:
 
     def __post_init__(self) -> None:
         from softsig_service.objects import BUILTIN_NAMES
-        from softsig_service.planning.planner import PLACEMENTS
+        from softsig_service.planning.hand_model import PLACEMENTS
         from softsig_service.planning.strategies import STRATEGIES
         from softsig_service.signatures.closure_types import CRITERIA, METHODS
 

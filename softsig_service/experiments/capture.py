@@ -73,7 +73,7 @@ def simulate_relative_yaw(
     prepare_mujoco()
     from softsig_service.experiments.trial import default_planner, run_trial
     from softsig_service.objects import object_from_json
-    from softsig_service.planning.planner import PlanRequest
+    from softsig_service.planning.request import PlanRequest
     from softsig_service.simulation.rollout import Perturbation
 
     obj = object_from_json(obj_json)

@@ -24,7 +24,8 @@ from softsig_service.arm.ur5 import UR5
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
 from softsig_service.objects import TableObject
-from softsig_service.planning.planner import GraspPlan, Planner, PlanRequest
+from softsig_service.planning.planner import Planner
+from softsig_service.planning.request import GraspPlan, PlanRequest
 from softsig_service.simulation.rollout import FrameCallback, Perturbation, RolloutConfig, arm_paths, judge, simulate
 from softsig_service.simulation.scene import build_scene
 

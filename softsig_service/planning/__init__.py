@@ -11,7 +11,8 @@ from softsig_service.planning.hand_model import (
     planning_model,
     remember_planning_model,
 )
-from softsig_service.planning.planner import GraspPlan, Planner, PlanRequest
+from softsig_service.planning.planner import Planner
+from softsig_service.planning.request import GraspPlan, PlanRequest
 from softsig_service.planning.strategies import axis_angle_between_lines, relative_poses, strategy_s_poses
 from softsig_service.planning.strategy_r import RChoice, c_relative_theta, solve_strategy_r
 from softsig_service.planning.wrist_pose import (

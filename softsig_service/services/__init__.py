@@ -1,8 +1,10 @@
 """The work the API and the CLI share: the compute pool, jobs and their kinds, the tasks they run, problem details."""
 
 from softsig_service.services.compute import ComputePool, error_payload, rebuild_error
+from softsig_service.services.job_files import list_files, media_type, resolve_file
 from softsig_service.services.job_kinds import default_job_kinds, register_builtin_hands, store_stiffness_signature
-from softsig_service.services.jobs import JobContext, JobKind, JobManager, list_files, media_type, resolve_file
+from softsig_service.services.job_process import JobContext
+from softsig_service.services.jobs import JobKind, JobManager
 from softsig_service.services.observability import Metrics
 from softsig_service.services.plan_image import render_plan_png
 from softsig_service.services.problems import problem_body, short_value, slug_of, softsig_problem, status_of

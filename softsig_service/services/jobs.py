@@ -23,19 +23,14 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
-import importlib
 import logging
-import math
 import multiprocessing
 import os
-import signal
 import socket
 import time
-import traceback
 import uuid
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
 from pathlib import Path
 from typing import Any
@@ -47,8 +42,8 @@ from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput, SoftsigError
 from softsig_service.registry.db import Registry
 from softsig_service.registry.models import utcnow
-from softsig_service.services.compute import _worker_init, error_payload, rebuild_error
-from softsig_service.services.lifeline import follow_parent
+from softsig_service.services.compute import rebuild_error
+from softsig_service.services.job_process import job_main, kill_group
 from softsig_service.services.observability import Metrics
 from softsig_service.services.problems import softsig_problem
 from softsig_service.services.serialize import to_jsonable
@@ -57,79 +52,8 @@ log = logging.getLogger("softsig.jobs")
 _MP = multiprocessing.get_context("spawn")
 
 
-MEDIA_TYPES = {
-    ".json": "application/json",
-    ".csv": "text/csv",
-    ".md": "text/markdown",
-    ".png": "image/png",
-    ".txt": "text/plain",
-    ".svg": "image/svg+xml",
-    ".pdf": "application/pdf",
-    ".mp4": "video/mp4",
-    ".jsonl": "application/x-ndjson",
-}
-
-
-def media_type(name: str) -> str:
-    """Media type of a result file by its suffix (``application/octet-stream`` when unknown)."""
-    return MEDIA_TYPES.get(Path(name).suffix.lower(), "application/octet-stream")
-
-
-# ----------------------------------------------------------------------------------------------------------
-
-
-# ----------------------------------------------------------------------------------------------------------
-# jobs: worker side
-# ----------------------------------------------------------------------------------------------------------
-
-
 SHUTDOWN_WAIT = 15.0
 """[s] the longest a shutdown waits for the dispatcher and for each group of job tasks to end."""
-
-
-class JobContext:
-    """What a job callable gets besides its parameters: its result folder and a progress reporter."""
-
-    def __init__(self, job_id: str, out_dir: Path, conn: Connection | None) -> None:
-        self.job_id = job_id
-        self.out_dir = out_dir
-        self._conn = conn
-        self._last = -math.inf
-        self._last_fraction = -1.0
-
-    def progress(self, fraction: float, message: str = "") -> None:
-        """Report progress in [0, 1] (sent at most every 0.2 s, and always when it reaches 1)."""
-        f = min(max(float(fraction), 0.0), 1.0) if math.isfinite(fraction) else 0.0
-        now = time.monotonic()
-        if self._conn is None or (now - self._last < 0.2 and f < 1.0):
-            return
-        self._last, self._last_fraction = now, f
-        with contextlib.suppress(OSError, ValueError):
-            self._conn.send(("progress", f, str(message)[:500]))
-
-
-def _job_main(job_id: str, target: str, params: dict[str, Any], out_dir: str, conn: Connection) -> None:
-    """Entry point of a job's process."""
-    with contextlib.suppress(OSError, AttributeError):
-        os.setpgrp()  # its own process group: killing the group stops the workers it starts
-    follow_parent(whole_group=True)  # the job and its workers die with the service
-    _worker_init()
-    try:
-        module, _, name = target.partition(":")
-        fn = getattr(importlib.import_module(module), name)
-        result = fn(params, JobContext(job_id, Path(out_dir), conn))
-        conn.send(("result", to_jsonable(result if result is not None else {})))
-    except SoftsigError as exc:
-        conn.send(("error", error_payload(exc)))
-    except BaseException as exc:
-        conn.send(("crash", f"{type(exc).__name__}: {exc}", traceback.format_exc()[-4000:]))
-    finally:
-        conn.close()
-
-
-# ----------------------------------------------------------------------------------------------------------
-# jobs: service side
-# ----------------------------------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -143,26 +67,6 @@ class JobKind:
     on_result: Callable[[Registry, dict[str, Any], dict[str, Any]], dict[str, Any]] | None = field(
         default=None, compare=False
     )
-
-
-def _kill_group(proc: BaseProcess) -> None:
-    pid = proc.pid
-    if pid is None:
-        return
-    for sig in (signal.SIGTERM, signal.SIGKILL):
-        try:
-            os.killpg(pid, sig)
-        except (ProcessLookupError, PermissionError):
-            with contextlib.suppress(Exception):
-                proc.terminate() if sig == signal.SIGTERM else proc.kill()
-        except OSError:
-            pass
-        proc.join(2.0)
-        if not proc.is_alive():
-            # the group may outlive its leader: make sure the rest is gone too
-            with contextlib.suppress(OSError):
-                os.killpg(pid, signal.SIGKILL)
-            return
 
 
 class JobManager:
@@ -275,7 +179,7 @@ class JobManager:
             self._dispatcher.cancel()
             await asyncio.wait({self._dispatcher}, timeout=SHUTDOWN_WAIT)
         for proc in list(self._procs.values()):
-            await run_in_threadpool(_kill_group, proc)
+            await run_in_threadpool(kill_group, proc)
         tasks = list(self._tasks.values())
         for task in tasks:
             task.cancel()
@@ -344,7 +248,7 @@ class JobManager:
         out_dir = self.out_dir(job_id)
         out_dir.mkdir(parents=True, exist_ok=True)
         recv, send = _MP.Pipe(duplex=False)
-        proc = _MP.Process(target=_job_main, args=(job_id, kind.target, params, str(out_dir), send), daemon=False)
+        proc = _MP.Process(target=job_main, args=(job_id, kind.target, params, str(out_dir), send), daemon=False)
         await run_in_threadpool(proc.start)
         send.close()
         self._procs[job_id] = proc
@@ -357,7 +261,7 @@ class JobManager:
         try:
             while outcome is None:
                 if self._stopping:  # the shutdown hands the job back to the queue: record nothing
-                    await run_in_threadpool(_kill_group, proc)
+                    await run_in_threadpool(kill_group, proc)
                     return
                 while outcome is None and recv.poll():
                     try:
@@ -387,16 +291,16 @@ class JobManager:
                     )
                     if held is None:  # another process holds it now, or it was finished: stop, write nothing
                         log.warning("job %s: lease lost; stopping this process's run of it", job_id)
-                        await run_in_threadpool(_kill_group, proc)
+                        await run_in_threadpool(kill_group, proc)
                         return
                     if held.cancel_requested:
                         cancel.set()
                 if cancel.is_set():
-                    await run_in_threadpool(_kill_group, proc)
+                    await run_in_threadpool(kill_group, proc)
                     await self._finish(job_id, kind.name, "cancelled", message="cancelled")
                     return
                 if now > deadline:
-                    await run_in_threadpool(_kill_group, proc)
+                    await run_in_threadpool(kill_group, proc)
                     await self._finish(
                         job_id, kind.name, "timed_out", message=f"stopped at the wall-time cap of {limit:g} s",
                         error={"type": "urn:softsig:problem:time-limit-exceeded", "title": "Time limit exceeded",
@@ -409,7 +313,7 @@ class JobManager:
                 await asyncio.sleep(0.05)
             await run_in_threadpool(proc.join, 10.0)
             if proc.is_alive():
-                await run_in_threadpool(_kill_group, proc)
+                await run_in_threadpool(kill_group, proc)
             await self._conclude(job_id, kind, params, outcome)
         finally:
             self._procs.pop(job_id, None)
@@ -450,24 +354,3 @@ def _problem(exc: SoftsigError) -> dict[str, Any]:
     _, body = softsig_problem(exc)
     body.pop("request_id", None)
     return body
-
-
-def list_files(folder: Path) -> list[tuple[str, int]]:
-    """Result files under ``folder`` (recursively): (relative POSIX path, size [bytes]), sorted."""
-    if not folder.is_dir():
-        return []
-    out = []
-    for p in sorted(folder.rglob("*")):
-        if p.is_file() and not p.is_symlink():
-            out.append((p.relative_to(folder).as_posix(), p.stat().st_size))
-    return out
-
-
-def resolve_file(folder: Path, name: str) -> Path | None:
-    """The file ``name`` inside ``folder``, or None if it is not a regular file there (no escapes, no links)."""
-    if not name or name.startswith(("/", "\\")) or ".." in Path(name).parts:
-        return None
-    path = (folder / name).resolve()
-    if not path.is_relative_to(folder.resolve()) or not path.is_file() or (folder / name).is_symlink():
-        return None
-    return path

@@ -11,7 +11,7 @@ from typing import Any
 
 from softsig_service.config import ModelLimits
 from softsig_service.errors import InvalidHandModel, SoftsigError
-from softsig_service.services.jobs import JobContext
+from softsig_service.services.job_process import JobContext
 from softsig_service.services.serialize import to_jsonable
 
 

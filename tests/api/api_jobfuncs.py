@@ -10,7 +10,7 @@ import time
 from typing import Any
 
 from softsig_service.errors import InvalidInput
-from softsig_service.services.jobs import JobContext
+from softsig_service.services.job_process import JobContext
 
 
 def count(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:

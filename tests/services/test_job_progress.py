@@ -9,7 +9,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from softsig_service.services import jobs
+from softsig_service.services import job_process as jobs
 
 
 def test_progress_is_throttled_and_the_end_always_arrives(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:

@@ -29,7 +29,7 @@ from softsig_service.api.schemas import ExperimentIn, JobFiles, JobList, JobOut,
 from softsig_service.errors import HandNotFound, InvalidInput, NotAvailable, NotFound
 from softsig_service.objects import object_from_json
 from softsig_service.objects.schema import object_json
-from softsig_service.services.jobs import list_files, media_type, resolve_file
+from softsig_service.services.job_files import list_files, media_type, resolve_file
 
 router = APIRouter(prefix="/v1", tags=["jobs"])
 JobId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="a job's id")]

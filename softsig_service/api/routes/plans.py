@@ -133,7 +133,7 @@ _CAPTURES_LOCK = threading.Lock()
 def _planner_options() -> frozenset[str]:
     """The fields of a plan request that the planner takes as they are (its other inputs, the hand, the object and
     the capture model, are resolved from the request first)."""
-    from softsig_service.planning.planner import PlanRequest
+    from softsig_service.planning.request import PlanRequest
 
     return frozenset(f.name for f in dataclasses.fields(PlanRequest)) & set(PlanIn.model_fields) - {"hand"}
 
@@ -142,7 +142,7 @@ def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRecord) -> dict[str,
     """Plan ``body`` for the registered ``hand`` with the app's planner and store it (unless ``store`` is false);
     the plan JSON."""
     from softsig_service.objects import object_from_json
-    from softsig_service.planning.planner import PlanRequest
+    from softsig_service.planning.request import PlanRequest
 
     obj = object_from_json(object_json(body.object))
     capture = capture_model(ctx, hand.name, obj, body.capture_version) if body.strategy == "R" else None

@@ -1,0 +1,127 @@
+"""What a plan is asked and what it answers: :class:`PlanRequest` (validated once, here) and :class:`GraspPlan`
+(whose JSON maps one to one onto moveit_msgs/Grasp, see docs/planning.md).
+
+Frames: world = UR5 ``base_link`` (z up); poses are of the flange ``tool0`` (= the hand frame); lengths in [m],
+angles in [rad].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from softsig_service.arm.ur5 import HOME_Q
+from softsig_service.errors import InvalidInput
+from softsig_service.geometry.checks import as_finite_array
+from softsig_service.geometry.quaternions import rotation_to_quat
+from softsig_service.geometry.transforms import pose_wire
+from softsig_service.objects import TableObject
+from softsig_service.planning.hand_model import DEFAULT_PLACEMENT, PLACEMENTS, Placement
+from softsig_service.planning.strategies import STRATEGIES
+from softsig_service.signatures.capture import CaptureModel
+from softsig_service.signatures.closure_types import CRITERIA, Criterion
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    """A top-grasp request. ``current_q`` [rad] defaults to the UR5's ``HOME_Q``; distances in [m].
+
+    Validated here, once (the boundary): the planner's internal steps do not check their inputs again.
+    """
+
+    hand: str
+    obj: TableObject
+    strategy: Literal["S", "C", "R"]
+    current_q: tuple[float, ...] | None = None
+    closing_axis: Literal["minor", "major"] = "minor"
+    approach_distance: float = 0.10
+    margin: float = 0.005
+    cs_method: Literal["ellipsoid", "pca", "mesh"] = "ellipsoid"
+    cs_criterion: Criterion = "absolute"
+    placement: Placement = DEFAULT_PLACEMENT
+    sigma_r: float = 0.0
+    """[rad] standard deviation of the object's yaw about its nominal pose (strategy R plans for it)."""
+    sigma_t: float = 0.0
+    """[m] standard deviation of the object's x and y about its nominal pose (strategy R plans for it)."""
+    capture: CaptureModel | None = None
+    """The hand's capture model on this object (strategy R; :mod:`softsig_service.signatures.capture`)."""
+    relative_pose: tuple[float, float, float] | None = None
+    """Put the hand at this relative pose (theta [rad], u, v [m]; :mod:`softsig_service.signatures.capture`)
+    instead of the strategy's choice (diagnostics and the capture model's simulations)."""
+
+    def __post_init__(self) -> None:
+        if self.strategy not in STRATEGIES:
+            raise InvalidInput("unknown strategy", field="strategy", value=self.strategy, choices=STRATEGIES)
+        for name, value in (("sigma_r", self.sigma_r), ("sigma_t", self.sigma_t)):
+            if not (math.isfinite(value) and 0.0 <= value <= 1.0):
+                raise InvalidInput("must be a finite number in [0, 1]", field=name, value=value)
+        if self.strategy == "R" and self.capture is None and self.relative_pose is None:
+            raise InvalidInput("strategy R needs the hand's capture model on this object", field="capture")
+        if self.relative_pose is not None:
+            rel = as_finite_array(self.relative_pose, (3,), "relative_pose")
+            object.__setattr__(self, "relative_pose", tuple(float(x) for x in rel))
+        if self.placement not in PLACEMENTS:
+            raise InvalidInput("unknown placement", field="placement", value=self.placement, choices=PLACEMENTS)
+        if self.cs_criterion not in CRITERIA:
+            raise InvalidInput("unknown criterion", field="cs_criterion", value=self.cs_criterion, choices=CRITERIA)
+        if self.current_q is not None:
+            q = as_finite_array(self.current_q, (len(HOME_Q),), "current_q")
+            object.__setattr__(self, "current_q", tuple(float(v) for v in q))
+        if self.closing_axis not in ("minor", "major"):
+            raise InvalidInput("unknown closing axis", field="closing_axis", value=self.closing_axis,
+                               choices=("minor", "major"))  # fmt: skip
+        for name, value, lo, hi in (("approach_distance", self.approach_distance, 0.0, 0.5),
+                                    ("margin", self.margin, 0.0, 0.05)):  # fmt: skip
+            if not (math.isfinite(value) and lo <= value <= hi):
+                raise InvalidInput(f"must be within [{lo}, {hi}] m", field=name, value=value)
+
+
+@dataclass(frozen=True)
+class GraspPlan:
+    """A planned top grasp; its JSON maps one to one onto moveit_msgs/Grasp (see docs/planning.md)."""
+
+    success: bool
+    reasons: list[str]
+    strategy: str
+    hand: str
+    object: dict[str, Any]
+    joint_names: list[str]
+    joint_positions: list[float] | None
+    pre_grasp_joint_positions: list[float] | None
+    grasp_pose: NDArray[np.float64] | None
+    pre_grasp_pose: NDArray[np.float64] | None
+    approach: dict[str, Any]
+    quality: dict[str, float | None]
+    timing: dict[str, float]
+    closure: dict[str, Any]
+    solver: dict[str, Any] = field(default_factory=dict)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """The plan JSON: poses as ``{"frame_id", "position": {x,y,z}, "orientation": {x,y,z,w}}``."""
+
+        def pose(T: NDArray[np.float64] | None) -> dict[str, Any] | None:
+            if T is None:
+                return None
+            return pose_wire(T[:3, 3], rotation_to_quat(T[:3, :3]), "base_link")  # the planner's own rotations
+
+        return {
+            "success": self.success,
+            "reasons": list(self.reasons),
+            "strategy": self.strategy,
+            "hand": self.hand,
+            "object": self.object,
+            "joint_names": list(self.joint_names),
+            "joint_positions": self.joint_positions,
+            "pre_grasp_joint_positions": self.pre_grasp_joint_positions,
+            "grasp_pose": pose(self.grasp_pose),
+            "pre_grasp_pose": pose(self.pre_grasp_pose),
+            "approach": self.approach,
+            "quality": self.quality,
+            "timing": self.timing,
+            "closure": self.closure,
+            "solver": self.solver,
+        }
