@@ -9,9 +9,10 @@
         print(plan.success, plan.grasp_pose)
         png = api.plan_image(plan.id)
 
-Responses are parsed into the pydantic models of :mod:`softsig_service.api.schemas`; an error response raises
-:class:`ApiError` carrying the problem details (``status``, ``field``, ``detail``...). Units and frames are the
-API's: SI units, poses of the UR5 flange in ``base_link``.
+Responses are parsed into the pydantic models of :mod:`softsig_service.api.schemas` (plans:
+:mod:`softsig_service.api.plan_schemas`); an error response raises :class:`ApiError` carrying the problem details
+(``status``, ``field``, ``detail``...). Units and frames are the API's: SI units, poses of the UR5 flange in
+``base_link``.
 """
 
 from __future__ import annotations
@@ -24,14 +25,13 @@ from typing import Any, Literal
 
 import httpx
 
+from softsig_service.api.plan_schemas import PlanList, PlanOut
 from softsig_service.api.schemas import (
     HandList,
     HandOut,
     JobFiles,
     JobList,
     JobOut,
-    PlanList,
-    PlanOut,
     Problem,
     Readiness,
     SignatureList,

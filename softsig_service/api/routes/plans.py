@@ -21,9 +21,10 @@ from starlette.concurrency import run_in_threadpool
 from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
 from softsig_service.api.deps import Ctx
+from softsig_service.api.plan_schemas import PlanIn, PlanList, PlanOut
 from softsig_service.api.routes.common import problem, read_route, write_route
 from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page_of
-from softsig_service.api.schemas import HAND_NAME_PATTERN, PlanIn, PlanList, PlanOut
+from softsig_service.api.schemas import HAND_NAME_PATTERN
 from softsig_service.errors import HandNotFound, InvalidInput, NotFound
 from softsig_service.objects import TableObject
 from softsig_service.objects.schema import object_json

@@ -1,0 +1,118 @@
+"""Request and response bodies of the plan routes (``/v1/plans``): the request, the plan and the list of stored plans.
+
+Same conventions as :mod:`softsig_service.api.schemas` (strict requests, open responses, SI units, world frame the
+UR5 ``base_link``).
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Literal
+
+from pydantic import Field
+
+from softsig_service.api.schemas import ClosureCriterion, CsMethod, HandName, JointAngle, Out, PoseOut, Vector3
+from softsig_service.objects.schema import ObjectSpec, Strict
+
+
+class PlanIn(Strict):
+    """A top-grasp request (docs/design.md §6): hand, object on the table, strategy S (bounding box), C (closure
+    signature) or R (robust to the stated pose uncertainty ``sigma_r``, ``sigma_t``, with the hand's capture
+    model on this object: ``capture_version``, or the newest capture signature of the hand for an object of the
+    same shape, size, mass and friction), the UR5's current joints ``current_q`` [rad] (default: home)."""
+
+    hand: HandName
+    object: ObjectSpec
+    strategy: Literal["S", "C", "R"]
+    sigma_r: float = Field(0.0, ge=0.0, le=1.0, strict=True, description="std. dev. of the object's yaw [rad] (R)")
+    sigma_t: float = Field(0.0, ge=0.0, le=1.0, strict=True, description="std. dev. of its x and y [m] (R)")
+    capture_version: int | None = Field(
+        None, ge=1, strict=True, description="signature version of the capture model R uses (default: the newest "
+        "for this object)",
+    )  # fmt: skip
+    current_q: tuple[JointAngle, JointAngle, JointAngle, JointAngle, JointAngle, JointAngle] | None = None
+    closing_axis: Literal["minor", "major"] = Field("minor", description="object axis the CS closes across (C)")
+    approach_distance: float = Field(
+        0.10, ge=0.0, le=0.5, strict=True, description="pre-grasp distance along the approach [m]"
+    )
+    margin: float = Field(0.005, ge=0.0, le=0.05, strict=True, description="clearance kept from table and object [m]")
+    cs_method: CsMethod = "ellipsoid"
+    cs_criterion: ClosureCriterion = Field(
+        "absolute", description="ellipsoid CS criterion: absolute [m] (docs/design.md §4) or relative half-width change"
+    )
+    placement: Literal["open_centre", "grasp_centre", "previous"] = Field(
+        "open_centre",
+        description="hand point put over the object's centre: c_0 of the open hand or c_T of the closed hand "
+        "(both strategies), or the previous per-strategy rule",
+    )
+    store: bool = Field(
+        True, strict=True, description="store the plan (GET /v1/plans/{id}, image.png); false: id is null"
+    )
+
+
+class Approach(Out):
+    """Straight approach: unit ``direction`` in ``frame_id``, distances [m] (moveit_msgs/GripperTranslation)."""
+
+    direction: Vector3
+    frame_id: str = "base_link"
+    desired_distance: float
+    min_distance: float
+
+
+class Quality(Out):
+    """Quality terms: ``alignment_error`` [rad], ``ik_residual`` [m], ``clearance`` [m]; ``expected_capture``
+    (strategy R only): the capture probability R expects under the stated pose noise, in [0, 1]."""
+
+    alignment_error: float | None = None
+    ik_residual: float | None = None
+    clearance: float | None = None
+    expected_capture: float | None = None
+
+
+class PlanOut(Out):
+    """A grasp plan; maps one to one onto moveit_msgs/Grasp (docs/planning.md). ``grasp_pose`` and
+    ``pre_grasp_pose`` are poses of the flange ``tool0`` in ``base_link``; joints [rad]; timing [s]."""
+
+    id: str | None = Field(None, description="the stored plan's id; null when the plan was not stored")
+    created_at: datetime | None = Field(None, description="when the plan was stored (UTC); null when not stored")
+    success: bool = Field(description="whether a pose passed the IK, approach and collision checks")
+    reasons: list[str] = Field(
+        description="why the plan failed, empty on success: alignment_impossible, unreachable, "
+        "unreachable:pre_grasp, unreachable:approach, collision:table, collision:object, collision:self"
+    )
+    strategy: str = Field(description="S (bounding box), C (closure signature) or R (capture model)")
+    hand: str = Field(description="the hand's name")
+    object: dict[str, Any] = Field(description="the object as planned, on its nominal pose")
+    joint_names: list[str] = Field(description="the UR5's joints, in the order of the joint positions")
+    joint_positions: list[float] | None = Field(None, description="UR5 joints at the grasp [rad]")
+    pre_grasp_joint_positions: list[float] | None = Field(None, description="UR5 joints at the pre-grasp [rad]")
+    grasp_pose: PoseOut | None = None
+    pre_grasp_pose: PoseOut | None = None
+    approach: Approach
+    quality: Quality
+    timing: dict[str, float] = Field(description="wall time [s] by part: strategy, ik, collision, total")
+    closure: dict[str, Any] = Field(default_factory=dict, description="the hand's closure command (grasp posture)")
+    solver: dict[str, Any] = Field(
+        default_factory=dict, description="status and iterations of the strategy, CS method, criterion, placement"
+    )
+    links: dict[str, str] = Field(default_factory=dict, description="URLs of the stored plan and its image")
+
+
+class PlanSummary(Out):
+    """A stored plan, briefly."""
+
+    id: str
+    hand: str
+    strategy: str
+    success: bool
+    created_at: datetime
+    links: dict[str, str] = Field(default_factory=dict)
+
+
+class PlanList(Out):
+    """Stored plans, newest first."""
+
+    items: list[PlanSummary]
+    total: int
+    limit: int
+    offset: int
