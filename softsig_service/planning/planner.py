@@ -16,7 +16,8 @@ points hand +z (the approach) down. The planner:
    object (the grasp pose), and raises the pre-grasp ``approach_distance`` back along the approach;
 3. solves the UR5 IK for the grasp (seeded by the current configuration), the pre-grasp (seeded by the grasp)
    and waypoints of the straight approach between them; checks arm + hand against table, object and itself
-   at every one of them (coal);
+   at every one of them (coal), except the hand's pairs with table and object where the descent has shown the
+   whole approach clear of them (:meth:`Planner._place`);
 4. returns, of the feasible branches, the one whose grasp configuration is closest to the current one.
    An infeasible request gives ``success=False`` with machine-readable ``reasons``.
 """
