@@ -9,8 +9,8 @@ The server runs on a free loopback port with a fresh data folder (SQLite registr
 keeps one HTTP/1.1 connection (httpx) and posts ``POST /v1/plans`` for the built-in box at random poses
 (x in [0.4, 0.6] m, y in [-0.15, 0.15] m, yaw in [-pi, pi]; fixed seed) until ``--requests`` are done or
 ``--seconds`` have passed. Printed per run: requests per second, p50/p90/p99 latency [ms] measured by the client,
-the mean planner time per plan (from each plan's ``timing``) and, with one service process, the mean time in
-the HTTP stack per request from its Prometheus metrics (so the rest is queueing and the client), and the CPU
+the mean planner time per plan (from each plan's ``timing``), the mean time in the HTTP stack per request from
+the service's Prometheus metrics (every process's together; so the rest is queueing and the client), and the CPU
 used by the client process and by the server's processes over the run, in cores. Runs: concurrency 1 (the
 latency of one request alone), then ``--concurrency`` with plans stored and with ``store: false``.
 """
@@ -114,7 +114,6 @@ def run(
     strategy: str,
     store: bool,
     server_pid: int,
-    single_process: bool,
 ) -> dict[str, Any]:
     rng = random.Random(7)
     bodies = [
@@ -190,8 +189,7 @@ def run(
         "p99": pct(99),
         "mean": statistics.fmean(lat) * 1e3 if lat else float("nan"),
         "planner_mean": statistics.fmean(planner) * 1e3 if planner else float("nan"),
-        # one process answers both scrapes only when there is one: with several, the two may come from different ones
-        "server_mean": http_s[0] / http_s[1] * 1e3 if http_s[1] > 0 and single_process else float("nan"),
+        "server_mean": http_s[0] / http_s[1] * 1e3 if http_s[1] > 0 else float("nan"),
         "client_cpu": cpu_client / wall if wall > 0 else float("nan"),
         "server_cpu": cpu_server / wall if wall > 0 else float("nan"),
     }
@@ -249,18 +247,17 @@ def main() -> None:
                 strategy=args.strategy,
                 store=True,
                 server_pid=pid,
-                single_process=args.workers == 1,
             )  # warm-up
             if args.per_request:
                 per_request(url, pid, args.requests, args.strategy)
                 return
             rows = [
                 run(url, n=max(50, args.requests // 4), concurrency=1, seconds=args.seconds, strategy=args.strategy,
-                    store=True, server_pid=pid, single_process=args.workers == 1),
+                    store=True, server_pid=pid),
                 run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
-                    strategy=args.strategy, store=True, server_pid=pid, single_process=args.workers == 1),
+                    strategy=args.strategy, store=True, server_pid=pid),
                 run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
-                    strategy=args.strategy, store=False, server_pid=pid, single_process=args.workers == 1),
+                    strategy=args.strategy, store=False, server_pid=pid),
             ]  # fmt: skip
         finally:
             proc.send_signal(signal.SIGINT)
@@ -279,8 +276,7 @@ def main() -> None:
         if r["first_failure"]:
             print(f"     first failure: {r['first_failure']}")
     print("planner ms: mean planner time per plan (each plan's timing.total); server ms: mean time the request")
-    print("spent in the server's HTTP stack (softsig_http_request_duration_seconds, route /v1/plans), shown with one")
-    print("service process only (with several, two /metrics scrapes may be answered by different processes).")
+    print("spent in the server's HTTP stack (softsig_http_request_duration_seconds, route /v1/plans, all processes).")
     print("client CPU / server CPU: CPU time of the client process / of every server process over the run's wall")
     print("time, in cores (on a 2-core machine the client's share is taken from the server).")
 

@@ -124,6 +124,7 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
             await jobs.shutdown()
             pool.shutdown()
             registry.dispose()
+            metrics.process_exited()
 
     app = FastAPI(
         title="softsig",

@@ -139,6 +139,8 @@ def serve(
     With several workers, each process serves requests and claims jobs from the shared registry; a process that
     dies leaves its jobs to the others once their lease expires (``SOFTSIG_JOB_LEASE``)."""
     import os
+    import shutil
+    import tempfile
 
     import uvicorn
 
@@ -167,9 +169,19 @@ def serve(
         # the worker processes build their settings from the environment: pass the options on that way
         for key, value in overrides.items():
             os.environ[f"SOFTSIG_{key.upper()}"] = str(value)
+        # their metrics count together in one folder (prometheus_client's multiprocess mode): a fresh one per run
+        # unless PROMETHEUS_MULTIPROC_DIR names one already
+        metrics_dir = None
+        if not os.environ.get("PROMETHEUS_MULTIPROC_DIR"):
+            metrics_dir = tempfile.mkdtemp(prefix="softsig-metrics-")
+            os.environ["PROMETHEUS_MULTIPROC_DIR"] = metrics_dir
         # each process migrates the registry and registers the built-in hands at its start; both are safe when
         # processes start together (one upgrade under a lock, one registration per hand)
-        _serve_processes(uvicorn.Config("softsig_service.api.app:service_app", factory=True, workers=n, **common))
+        try:
+            _serve_processes(uvicorn.Config("softsig_service.api.app:service_app", factory=True, workers=n, **common))
+        finally:
+            if metrics_dir is not None:
+                shutil.rmtree(metrics_dir, ignore_errors=True)
 
 
 def _serve_processes(config: Any) -> None:

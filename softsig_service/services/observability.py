@@ -4,13 +4,19 @@ lines and problem bodies written while serving it carry it, in threads too) and 
 Metrics: ``softsig_http_requests_total{method, route, status}``, ``softsig_http_request_duration_seconds{method,
 route}`` (histogram, [s]), ``softsig_http_requests_in_progress``, ``softsig_plan_seconds{strategy}`` (planner
 time [s]), ``softsig_jobs_running`` and ``softsig_jobs_finished_total{kind, status}``.
+
+Several service processes (``softsig serve --workers N``) count together: when ``PROMETHEUS_MULTIPROC_DIR`` names a
+folder (prometheus_client's multiprocess mode; ``softsig serve`` sets one up for its workers), every process
+writes its values there and :meth:`Metrics.exposition` sums all of them, whichever process answers the scrape. The
+gauges then add the live processes' values.
 """
 
 from __future__ import annotations
 
+import os
 from contextvars import ContextVar
 
-from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram
+from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest, multiprocess
 
 request_id_var: ContextVar[str | None] = ContextVar("softsig_request_id", default=None)
 """The id of the request being served (None outside a request)."""
@@ -20,6 +26,8 @@ class Metrics:
     """The Prometheus metrics of one app (their own registry)."""
 
     def __init__(self) -> None:
+        self.multiprocess_dir = os.environ.get("PROMETHEUS_MULTIPROC_DIR") or None
+        """The folder the processes of one service share their values in (None: this process alone)."""
         self.registry = CollectorRegistry(auto_describe=True)
         self.requests = Counter(
             "softsig_http_requests", "HTTP requests served", ["method", "route", "status"], registry=self.registry
@@ -31,7 +39,10 @@ class Metrics:
             buckets=(0.001, 0.002, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0),
             registry=self.registry,
         )
-        self.in_progress = Gauge("softsig_http_requests_in_progress", "requests being served", registry=self.registry)
+        self.in_progress = Gauge(
+            "softsig_http_requests_in_progress", "requests being served", registry=self.registry,
+            multiprocess_mode="livesum",
+        )  # fmt: skip
         self.plan_seconds = Histogram(
             "softsig_plan_seconds",
             "planner wall time per plan [s]",
@@ -39,7 +50,24 @@ class Metrics:
             buckets=(0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.5, 2.0),
             registry=self.registry,
         )
-        self.jobs_running = Gauge("softsig_jobs_running", "jobs running in worker processes", registry=self.registry)
+        self.jobs_running = Gauge(
+            "softsig_jobs_running", "jobs running in worker processes", registry=self.registry,
+            multiprocess_mode="livesum",
+        )  # fmt: skip
         self.jobs_finished = Counter(
             "softsig_jobs_finished", "jobs that reached a final status", ["kind", "status"], registry=self.registry
         )
+
+    def exposition(self) -> bytes:
+        """The metrics in Prometheus' text format: of every process of the service in multiprocess mode, else of
+        this one."""
+        if self.multiprocess_dir is None:
+            return bytes(generate_latest(self.registry))
+        registry = CollectorRegistry()
+        multiprocess.MultiProcessCollector(registry, path=self.multiprocess_dir)
+        return bytes(generate_latest(registry))
+
+    def process_exited(self) -> None:
+        """Drop this process's live gauges from the shared folder (at a graceful exit; multiprocess mode only)."""
+        if self.multiprocess_dir is not None:
+            multiprocess.mark_process_dead(os.getpid(), self.multiprocess_dir)

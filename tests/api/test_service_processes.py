@@ -128,3 +128,53 @@ def test_a_killed_process_leaves_its_job_to_the_other(services: tuple[Service, S
     files = {f["name"] for f in survivor.http.get(f"/v1/jobs/{job_id}/files").json()["items"]}
     assert {"validation.json", "outcomes.csv"} <= files
     assert not pid_alive(victim.proc.pid)
+
+
+def _healthz_count(text: str) -> float:
+    """``softsig_http_requests_total`` of ``GET /healthz`` with status 200 in a Prometheus text exposition."""
+    total = 0.0
+    for line in text.splitlines():
+        if line.startswith("softsig_http_requests_total{") and 'route="/healthz"' in line and 'status="200"' in line:
+            total += float(line.rsplit(" ", 1)[1])
+    return total
+
+
+def test_metrics_of_several_processes_count_together(tmp_path: Path) -> None:
+    """``softsig serve --workers 2``: requests spread over new connections land in both processes, and every scrape
+    of /metrics, whichever process answers it, counts all of them."""
+    metrics_dir = tmp_path / "metrics"
+    metrics_dir.mkdir()
+    port = _free_port()
+    env = {**os.environ, "SOFTSIG_DATA_DIR": str(tmp_path / "data"), "SOFTSIG_API_KEYS": "k",
+           "SOFTSIG_WARM_PLANNER": "false", "PROMETHEUS_MULTIPROC_DIR": str(metrics_dir)}  # fmt: skip
+    with (tmp_path / "serve.log").open("w") as log:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "softsig_service.cli", "serve", "--workers", "2", "--port", str(port)],
+            env=env, stdout=log, stderr=subprocess.STDOUT,
+        )  # fmt: skip
+        url = f"http://127.0.0.1:{port}"
+        try:
+
+            def both_ready() -> bool:
+                assert proc.poll() is None, "the service exited"
+                try:
+                    return all(httpx.get(f"{url}/readyz", timeout=5).status_code == 200 for _ in range(4))
+                except httpx.TransportError:
+                    return False
+
+            wait_for(both_ready, timeout=180, poll=0.5)
+            before = _healthz_count(httpx.get(f"{url}/metrics", timeout=10).text)
+            n = 60
+            for _ in range(n):  # a new connection each: the two processes accept them in turn
+                assert httpx.get(f"{url}/healthz", timeout=10).status_code == 200
+            writers = {p.name.rsplit("_", 1)[-1] for p in metrics_dir.glob("counter_*.db")}
+            assert len(writers) >= 2, f"one process served every request: {writers}"
+            for _ in range(6):  # each scrape may be answered by either process
+                assert _healthz_count(httpx.get(f"{url}/metrics", timeout=10).text) == before + n
+        finally:
+            proc.send_signal(signal.SIGTERM)
+            try:
+                proc.wait(30)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(10)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from fastapi import APIRouter, Request, Response
-from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
+from prometheus_client import CONTENT_TYPE_LATEST
 from starlette.concurrency import run_in_threadpool
 
 from softsig_service.api.problems import problem_body, problem_response
@@ -51,4 +51,4 @@ async def readyz(request: Request) -> Response | Readiness:
 async def metrics(request: Request) -> Response:
     """Request counts and latency histograms by route template, planner time, jobs."""
     ctx = request.app.state.ctx
-    return Response(generate_latest(ctx.metrics.registry), media_type=CONTENT_TYPE_LATEST)
+    return Response(ctx.metrics.exposition(), media_type=CONTENT_TYPE_LATEST)
