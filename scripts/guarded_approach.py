@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import time
 
 import mujoco
@@ -31,7 +30,7 @@ import softsig_service.experiments.trial as trial
 from softsig_service.hands.closure import closure_command
 from softsig_service.objects import builtin_object
 from softsig_service.simulation import rollout
-from softsig_service.simulation.rollout import SimOutcome, _interp, _quintic, line_ik
+from softsig_service.simulation.rollout import _interp, _quintic, line_ik
 from softsig_service.simulation.scene_model import GEOM_HAND, GEOM_OBJECT, GEOM_TABLE, HAND_PREFIX
 
 HALF_HEIGHT = {"box": 0.025, "apple": 0.036, "cylinder": 0.03}  # centre to top [m], resting pose
@@ -136,37 +135,21 @@ def arm_paths_spy(ur5, T_pre, T_grasp, q_pre, cfg):
 
 def guarded_simulate(scene, obj, approach, lift, cfg, on_frame, frame_period):
     """rollout.simulate with a guarded descent between the approach and the closure (module docstring)."""
-    model = scene.model
-    data = scene.make_data(approach[0], obj.primitive_pose)
-    z0 = float(scene.object_position(data)[2])
-    out = SimOutcome()
-    dt = float(model.opt.timestep)
-    nsub = max(1, round(cfg.control_period / dt))
-    tick = nsub * dt
+    run = rollout.Run(scene, obj, approach[0], cfg)
+    data, out, tick = run.data, run.out, run.tick
     closure = scene.hand.manifest.closure
     arm_act, clo_act = scene.arm_actuators, scene.closure_actuators
     c_open, c_closed = scene.closure_open, scene.closure_closed
     rec = STATE["record"]
     name = STATE["obj_name"]
 
-    def step_and_check(grasping: bool) -> bool:
-        mujoco.mj_step(model, data, nsub)
-        if not np.isfinite(data.qpos).all() or data.warning[rollout._BADQACC].number:
-            out.unstable = True
-            return False
-        contacts = scene.contact_summary(data)
-        arm_hit = contacts.arm_table or (contacts.arm_object and not grasping)
-        if arm_hit and out.arm_collision_time is None:
-            out.arm_collision_time = float(data.time)
-        if grasping and contacts.object_hand:
-            out.touched_in_lift = True
-        out.max_rise = max(out.max_rise, float(scene.object_position(data)[2]) - z0)
+    def trace() -> None:
         if STATE.get("trace"):
             ct = contact_table(scene, data)
             STATE["record"].setdefault("trace", []).append(
                 {
                     "t": round(float(data.time), 3),
-                    "rise": round(float(scene.object_position(data)[2]) - z0, 4),
+                    "rise": round(float(scene.object_position(data)[2]) - run.z0, 4),
                     "flange_z": round(float(data.xpos[scene.flange_body][2]), 4),
                     "obj_in_hand": [round(float(v), 4) for v in scene.object_in_flange(data)],
                     "Fn": round(ct["hand_object_normal"], 1),
@@ -175,17 +158,15 @@ def guarded_simulate(scene, obj, approach, lift, cfg, on_frame, frame_period):
                     "bodies": ct["per_body"],
                 }
             )
+
+    def step_and_check(grasping: bool) -> bool:
+        if not run.step(grasping):
+            return False
+        trace()
         return True
 
     def phase(duration, arm, hand, grasping) -> bool:
-        n = max(1, math.ceil(duration / tick - 1e-9))
-        for k in range(n):
-            t = (k + 1) * tick
-            data.ctrl[arm_act] = arm(t)
-            data.ctrl[clo_act] = hand(t)
-            if not step_and_check(grasping):
-                return False
-        return True
+        return run.phase(duration, arm, hand, grasping, trace)
 
     q_grasp = approach[-1]
 
@@ -265,14 +246,9 @@ def guarded_simulate(scene, obj, approach, lift, cfg, on_frame, frame_period):
         snapshot(scene, data, name, "end_of_lift")
     p_hold = scene.object_in_flange(data)
     ok = ok and (cfg.hold_time <= 0.0 or phase(cfg.hold_time, lambda _t: q_top, closed_hand, True))
-    out.sim_time = float(data.time)
     if ok:
         snapshot(scene, data, name, "end_of_hold")
-        out.rise = float(scene.object_position(data)[2]) - z0
-        out.touching_end = scene.contact_summary(data).object_hand
-        out.touching_table_end = scene.object_touches_table(data)
-        out.slip = float(np.linalg.norm(scene.object_in_flange(data) - p_hold))
-    return out
+    return run.finish(ok, p_hold)
 
 
 def main() -> None:

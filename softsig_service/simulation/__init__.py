@@ -18,6 +18,7 @@ from softsig_service.simulation.pullout import PullSettings, check_directions, d
 from softsig_service.simulation.rollout import (
     Perturbation,
     RolloutConfig,
+    Run,
     SimOutcome,
     arm_paths,
     judge,
@@ -41,6 +42,7 @@ __all__ = [
     "Perturbation",
     "PullSettings",
     "RolloutConfig",
+    "Run",
     "Scene",
     "SimOutcome",
     "actuator_synergies",

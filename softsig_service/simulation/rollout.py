@@ -230,6 +230,79 @@ def judge(sim: SimOutcome, cfg: RolloutConfig) -> str | None:
     return "no_contact"
 
 
+class Run:
+    """One rollout in MuJoCo: the scene's data, started at the joint positions ``q_start`` [rad] with the object at
+    its (perturbed) pose, stepped one control tick at a time while recording what the judge needs (``out``).
+
+    ``tick`` [s] is the control period rounded to a whole number (``nsub``) of the scene's time steps; ``z0`` [m]
+    the object's starting height (world z). :func:`simulate` drives it through the trial's phases.
+    """
+
+    def __init__(self, scene: Scene, obj: TableObject, q_start: FloatArray, cfg: RolloutConfig) -> None:
+        self.scene = scene
+        self.data = scene.make_data(q_start, obj.primitive_pose)
+        self.z0 = float(scene.object_position(self.data)[2])
+        self.out = SimOutcome()
+        dt = float(scene.model.opt.timestep)
+        self.nsub = max(1, round(cfg.control_period / dt))
+        self.tick = self.nsub * dt
+
+    def step(self, grasping: bool) -> bool:
+        """One control tick with the controls as set; False if the simulation diverged.
+
+        ``grasping``: the object is (meant to be) in the hand (lift and hold), so its contacts with the arm's
+        links (held against the flange, or falling past the wrist) are not arm collisions, and its contacts
+        with the hand are recorded in ``touched_in_lift``."""
+        scene, data, out = self.scene, self.data, self.out
+        mujoco.mj_step(scene.model, data, self.nsub)
+        if not np.isfinite(data.qpos).all() or data.warning[_BADQACC].number:
+            out.unstable = True
+            return False
+        contacts = scene.contact_summary(data)
+        arm_hit = contacts.arm_table or (contacts.arm_object and not grasping)
+        if arm_hit and out.arm_collision_time is None:
+            out.arm_collision_time = float(data.time)
+        if grasping and contacts.object_hand:
+            out.touched_in_lift = True
+        out.max_rise = max(out.max_rise, float(scene.object_position(data)[2]) - self.z0)
+        return True
+
+    def phase(
+        self,
+        duration: float,
+        arm: Callable[[float], FloatArray],
+        hand: Callable[[float], FloatArray],
+        grasping: bool,
+        after_tick: Callable[[], None] | None = None,
+    ) -> bool:
+        """Run ``duration`` [s] with the arm's and the closure's targets as functions of the phase time [s] (set
+        for the end of each tick: servos lead by one tick), calling ``after_tick`` after each; False if the
+        simulation diverged. ``grasping`` as in :meth:`step`."""
+        data, scene = self.data, self.scene
+        n = max(1, math.ceil(duration / self.tick - 1e-9))
+        for k in range(n):
+            t = (k + 1) * self.tick
+            data.ctrl[scene.arm_actuators] = arm(t)
+            data.ctrl[scene.closure_actuators] = hand(t)
+            if not self.step(grasping):
+                return False
+            if after_tick is not None:
+                after_tick()
+        return True
+
+    def finish(self, ok: bool, p_hold: FloatArray) -> SimOutcome:
+        """The outcome, with what the end of the hold shows when the trial ran to it (``ok``); ``p_hold`` [m] is
+        the object's centre in the flange frame at the start of the hold."""
+        scene, data, out = self.scene, self.data, self.out
+        out.sim_time = float(data.time)
+        if ok:
+            out.rise = float(scene.object_position(data)[2]) - self.z0
+            out.touching_end = scene.contact_summary(data).object_hand
+            out.touching_table_end = scene.object_touches_table(data)
+            out.slip = float(np.linalg.norm(scene.object_in_flange(data) - p_hold))
+        return out
+
+
 def simulate(
     scene: Scene,
     obj: TableObject,
@@ -240,15 +313,9 @@ def simulate(
     frame_period: float,
 ) -> SimOutcome:
     """Step the scene through approach, close, lift and hold; record what the judge needs."""
-    model = scene.model
-    data = scene.make_data(approach[0], obj.primitive_pose)
-    z0 = float(scene.object_position(data)[2])
-    out = SimOutcome()
-    dt = float(model.opt.timestep)
-    nsub = max(1, round(cfg.control_period / dt))
-    tick = nsub * dt
+    run = Run(scene, obj, approach[0], cfg)
+    data = run.data
     closure = scene.hand.manifest.closure
-    arm_act, clo_act = scene.arm_actuators, scene.closure_actuators
     c_open, c_closed = scene.closure_open, scene.closure_closed
     next_frame = 0.0
 
@@ -257,33 +324,6 @@ def simulate(
         if on_frame is not None and data.time >= next_frame - 1e-9:
             on_frame(scene, data)
             next_frame += frame_period
-
-    def phase(
-        duration: float, arm: Callable[[float], FloatArray], hand: Callable[[float], FloatArray], grasping: bool
-    ) -> bool:
-        """Run ``duration`` [s] with targets as functions of the phase time; False if it diverged.
-
-        ``grasping``: the object is (meant to be) in the hand (lift and hold), so its contacts with the arm's
-        links (held against the flange, or falling past the wrist) are not arm collisions, and its contacts
-        with the hand are recorded in ``touched_in_lift``."""
-        n = max(1, math.ceil(duration / tick - 1e-9))
-        for k in range(n):
-            t = (k + 1) * tick  # targets of the end of the tick (servos lead by one tick)
-            data.ctrl[arm_act] = arm(t)
-            data.ctrl[clo_act] = hand(t)
-            mujoco.mj_step(model, data, nsub)
-            if not np.isfinite(data.qpos).all() or data.warning[_BADQACC].number:
-                out.unstable = True
-                return False
-            contacts = scene.contact_summary(data)
-            arm_hit = contacts.arm_table or (contacts.arm_object and not grasping)
-            if arm_hit and out.arm_collision_time is None:
-                out.arm_collision_time = float(data.time)
-            if grasping and contacts.object_hand:
-                out.touched_in_lift = True
-            out.max_rise = max(out.max_rise, float(scene.object_position(data)[2]) - z0)
-            frame()
-        return True
 
     frame()
     q_grasp, q_top = approach[-1], lift[-1]
@@ -297,20 +337,19 @@ def simulate(
     def ramp(t: float) -> FloatArray:
         return closure_command(scene.hand, t, closure.duration)
 
+    def phase(
+        duration: float, arm: Callable[[float], FloatArray], hand: Callable[[float], FloatArray], grasping: bool
+    ) -> bool:
+        return run.phase(duration, arm, hand, grasping, frame)
+
     ok = phase(cfg.approach_time, lambda t: _interp(approach, _quintic(t / cfg.approach_time)), open_hand, False)
     ok = ok and phase(closure.duration + closure.settle, lambda _t: q_grasp, ramp, False)
     if ok:
-        out.touching_after_close = scene.contact_summary(data).object_hand
+        run.out.touching_after_close = scene.contact_summary(data).object_hand
     ok = ok and phase(cfg.lift_time, lambda t: _interp(lift, _quintic(t / cfg.lift_time)), closed_hand, True)
     p_hold = scene.object_in_flange(data)  # the object in the hand frame at the start of the hold
     ok = ok and (cfg.hold_time <= 0.0 or phase(cfg.hold_time, lambda _t: q_top, closed_hand, True))
-    out.sim_time = float(data.time)
-    if ok:
-        out.rise = float(scene.object_position(data)[2]) - z0
-        out.touching_end = scene.contact_summary(data).object_hand
-        out.touching_table_end = scene.object_touches_table(data)
-        out.slip = float(np.linalg.norm(scene.object_in_flange(data) - p_hold))
-    return out
+    return run.finish(ok, p_hold)
 
 
 def arm_paths(
