@@ -77,7 +77,7 @@ class HandGeometry:
         """World z [m] of each shape's lowest point at the flange pose ``T_world_hand``."""
         up = T_world_hand[2, :3] @ self.rotations  # (n, 3): world z in each shape's frame
         z = self.origins @ T_world_hand[2, :3] + T_world_hand[2, 3]
-        across = np.sqrt(np.maximum(0.0, 1.0 - up[:, 2] ** 2))
+        across = np.hypot(up[:, 0], up[:, 1])  # sin of the axis's tilt; sqrt(1 - cos^2) cancels near vertical
         return np.asarray(z - (np.abs(up) * self.half_box).sum(axis=1) - self.disc * across - self.ball)
 
 
