@@ -53,7 +53,6 @@ class BroadPhase:
                 self._set(i, go.placement, go.geometry)
         self.halfspace = halfspace
         self.height = height
-        self._joints = [int(j) for j in np.unique(self.parent) if j]
 
     def _set(self, index: int, placement: pin.SE3, geometry: coal.CollisionGeometry) -> None:
         box = local_aabb(geometry).aabb_local
