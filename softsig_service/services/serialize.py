@@ -13,8 +13,6 @@ def to_jsonable(value: Any) -> Any:
         return value if math.isfinite(value) else None
     if t is str or t is int or t is bool or value is None:
         return value
-    if t is list:
-        return [to_jsonable(v) for v in value]
     if isinstance(value, dict):
         return {str(k): to_jsonable(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
@@ -43,8 +41,10 @@ def vectors_as_objects(value: Any) -> Any:
     """``value`` (plain JSON) with every 3-D vector under :data:`VECTOR_KEYS` (and every row of a list under
     :data:`VECTOR_ROW_KEYS`) written as ``{"x", "y", "z"}``, the REST API's one form of a vector. Lists that
     are not triples (joint positions, per-axis values, matrices) are left as they are."""
-    t = type(value)
-    if t is dict:
+    t = type(value)  # plain scalars first, by exact type (most of a plan's JSON)
+    if t is float or t is int or t is str or t is bool or value is None:
+        return value
+    if isinstance(value, dict):
         out: dict[str, Any] = {}
         for k, v in value.items():
             if k in VECTOR_KEYS and _is_triple(v):
@@ -54,12 +54,6 @@ def vectors_as_objects(value: Any) -> Any:
             else:
                 out[k] = vectors_as_objects(v)
         return out
-    if t is list:
-        return [vectors_as_objects(v) for v in value]
-    if t is float or t is int or t is str or t is bool or value is None:
-        return value
-    if isinstance(value, dict):
-        return vectors_as_objects(dict(value))
     if isinstance(value, list):
         return [vectors_as_objects(v) for v in value]
     return value
