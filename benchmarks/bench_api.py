@@ -105,6 +105,14 @@ def wait_idle(pid: int, *, below: float = 0.05, timeout: float = 120.0) -> None:
             return
 
 
+def plan_body(rng: random.Random, strategy: str, store: bool) -> dict[str, Any]:
+    """A ``POST /v1/plans`` body: the SoftHand, the built-in box at a random pose drawn from ``rng`` (x in [0.4,
+    0.6] m, y in [-0.15, 0.15] m, yaw in [-pi, pi])."""
+    pose = {"x": rng.uniform(0.4, 0.6), "y": rng.uniform(-0.15, 0.15), "yaw": rng.uniform(-math.pi, math.pi)}
+    return {"hand": "pisa_iit_softhand", "object": {"kind": "builtin", "name": "box", "pose": pose},
+            "strategy": strategy, "store": store}  # fmt: skip
+
+
 def run(
     url: str,
     *,
@@ -116,17 +124,7 @@ def run(
     server_pid: int,
 ) -> dict[str, Any]:
     rng = random.Random(7)
-    bodies = [
-        {
-            "hand": "pisa_iit_softhand",
-            "object": {"kind": "builtin", "name": "box",
-                       "pose": {"x": rng.uniform(0.4, 0.6), "y": rng.uniform(-0.15, 0.15),
-                                "yaw": rng.uniform(-math.pi, math.pi)}},
-            "strategy": strategy,
-            "store": store,
-        }
-        for _ in range(n)
-    ]  # fmt: skip
+    bodies = [plan_body(rng, strategy, store) for _ in range(n)]
     latencies: list[float] = []
     planner: list[float] = []  # [s] the planner's own time, from each plan's timing
     failures: list[str] = []
@@ -200,17 +198,12 @@ def per_request(url: str, server_pid: int, n: int, strategy: str) -> None:
     fails validation, and plans not stored and stored: what the HTTP stack costs beside the planner."""
     rng = random.Random(11)
 
-    def body(store: bool) -> dict[str, Any]:
-        pose = {"x": rng.uniform(0.4, 0.6), "y": rng.uniform(-0.15, 0.15), "yaw": rng.uniform(-math.pi, math.pi)}
-        return {"hand": "pisa_iit_softhand", "strategy": strategy, "store": store,
-                "object": {"kind": "builtin", "name": "box", "pose": pose}}  # fmt: skip
-
     with httpx.Client(base_url=url, headers={"X-API-Key": KEY}, timeout=30) as client:
         cases = (
             ("GET /healthz", lambda: client.get("/healthz")),
             ("POST /v1/plans, invalid body", lambda: client.post("/v1/plans", json={"hand": "x"})),
-            ("POST /v1/plans, not stored", lambda: client.post("/v1/plans", json=body(False))),
-            ("POST /v1/plans, stored", lambda: client.post("/v1/plans", json=body(True))),
+            ("POST /v1/plans, not stored", lambda: client.post("/v1/plans", json=plan_body(rng, strategy, False))),
+            ("POST /v1/plans, stored", lambda: client.post("/v1/plans", json=plan_body(rng, strategy, True))),
         )
         print(f"one request at a time, {n} each, strategy {strategy}")
         print(f"{'request':30s} {'wall ms':>8} {'server CPU ms':>13} {'client CPU ms':>13}")
