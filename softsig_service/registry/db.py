@@ -13,7 +13,9 @@ SQLite is set up on every new connection (connection events, not a one-off scrip
 Transactions are started by SQLAlchemy, not by the driver (pysqlite's implicit ``BEGIN`` is switched off, as the
 SQLAlchemy docs recommend): reads start a deferred ``BEGIN``; write sessions (:meth:`Registry.write`) start
 ``BEGIN IMMEDIATE``, taking SQLite's write lock up front so that two writers queue on the busy timeout rather than
-deadlock on a lock upgrade. On PostgreSQL both are plain transactions; signature versions are allocated with a
+deadlock on a lock upgrade. On SQLite the writing threads of one process also take turns on a lock of the process
+(bounded by the same busy timeout, then :class:`~softsig_service.errors.ServiceBusy`): SQLite's busy handler
+waits by sleeping 1, 2, 5, 10, ... ms, which costs concurrent writers of one process tens of milliseconds. On PostgreSQL both are plain transactions; signature versions are allocated with a
 row-locking ``UPDATE ... RETURNING`` there as here.
 
 The schema is made and upgraded by Alembic migrations (:mod:`softsig_service.registry.migrate`), in a write
@@ -23,16 +25,18 @@ transaction, whenever a :class:`Registry` is opened with ``create=True`` (the se
 from __future__ import annotations
 
 import sqlite3
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import Engine, create_engine, event, text
+from sqlalchemy import Connection, Engine, create_engine, event, text
 from sqlalchemy.engine import make_url
 from sqlalchemy.orm import Session, sessionmaker
 
+from softsig_service.errors import ServiceBusy
 from softsig_service.registry import migrate
 
 _WRITE_OPTION = "softsig_write"
@@ -91,8 +95,13 @@ class Registry:
         self.url = url
         self.engine = make_engine(url, busy_timeout=busy_timeout)
         self.is_sqlite = _is_sqlite(url)
+        self.busy_timeout = busy_timeout
+        # SQLite's busy handler waits for a held write lock by sleeping 1, 2, 5, 10, ... ms: the threads of one
+        # process queue on a lock of their own instead, and only the processes meet at SQLite's
+        self._sqlite_writers = threading.RLock() if self.is_sqlite else None
         self._read = sessionmaker(self.engine, expire_on_commit=False)
-        self._write = sessionmaker(self.engine.execution_options(**{_WRITE_OPTION: True}), expire_on_commit=False)
+        self._write_engine = self.engine.execution_options(**{_WRITE_OPTION: True})
+        self._write = sessionmaker(self._write_engine, expire_on_commit=False)
         if create:
             self.upgrade_schema()
 
@@ -102,7 +111,7 @@ class Registry:
         Raises :class:`~softsig_service.registry.migrate.SchemaTooNew` when the database was written by a newer
         softsig.
         """
-        with self.engine.execution_options(**{_WRITE_OPTION: True}).begin() as conn:
+        with self._writer(), self._write_engine.begin() as conn:
             return migrate.upgrade(conn)
 
     @contextmanager
@@ -112,10 +121,39 @@ class Registry:
             yield session
 
     @contextmanager
+    def _writer(self) -> Iterator[None]:
+        """On SQLite, this process's turn to write (:class:`ServiceBusy` after ``busy_timeout`` [s] without it);
+        elsewhere nothing: the server queues the writers itself."""
+        lock = self._sqlite_writers
+        if lock is None:
+            yield
+            return
+        if not lock.acquire(timeout=self.busy_timeout):
+            raise ServiceBusy("the registry is busy with other writes; retry", field=None)
+        try:
+            yield
+        finally:
+            lock.release()
+
+    @contextmanager
     def write(self) -> Iterator[Session]:
         """A session in a write transaction: committed when the block ends, rolled back on an exception."""
-        with self._write() as session, session.begin():
+        with self._writer(), self._write() as session, session.begin():
             yield session
+
+    @contextmanager
+    def read_core(self) -> Iterator[Connection]:
+        """A Core connection for reads, for the hot paths that need no ORM session (its transaction is rolled
+        back at the end)."""
+        with self.engine.connect() as conn:
+            yield conn
+
+    @contextmanager
+    def write_core(self) -> Iterator[Connection]:
+        """A Core connection in a write transaction (``BEGIN IMMEDIATE`` on SQLite, like :meth:`write`):
+        committed when the block ends, rolled back on an exception."""
+        with self._writer(), self._write_engine.begin() as conn:
+            yield conn
 
     def ping(self) -> bool:
         """Whether the database answers a trivial query."""

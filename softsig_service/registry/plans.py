@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
+import dataclasses
 import uuid
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import delete, select
+from sqlalchemy import delete, insert, select
 
 from softsig_service.registry.db import Registry
 from softsig_service.registry.models import PlanRow, utcnow
-from softsig_service.registry.records import get_record, inserted, record_from_row, record_page, row_or_not_found
+from softsig_service.registry.records import get_record, record_from_row, record_page, row_or_not_found
 
 
 @dataclass(frozen=True)
@@ -27,18 +28,22 @@ class PlanRecord:
     created_at: datetime
 
 
+_INSERT = insert(PlanRow)
+_FIELDS = tuple(f.name for f in dataclasses.fields(PlanRecord))
+
+
 def _plan(row: PlanRow) -> PlanRecord:
     return record_from_row(PlanRecord, row)
 
 
 def add_plan(reg: Registry, *, hand: str, strategy: str, success: bool, request: dict[str, Any],
              result: dict[str, Any]) -> PlanRecord:  # fmt: skip
-    """Store a plan under a new random id."""
-    with reg.write() as s:
-        row = PlanRow(
-            id=uuid.uuid4().hex, hand=hand, strategy=strategy, success=success, request=request, result=result
-        )
-        return _plan(inserted(s, row))
+    """Store a plan under a new random id (one Core ``INSERT``: a plan request's path, where an ORM session and
+    flush cost about half as much again)."""
+    rec = PlanRecord(uuid.uuid4().hex, hand, strategy, success, dict(request), dict(result), utcnow())
+    with reg.write_core() as conn:
+        conn.execute(_INSERT, {f: getattr(rec, f) for f in _FIELDS})
+    return rec
 
 
 def get_plan(reg: Registry, plan_id: str) -> PlanRecord:

@@ -302,3 +302,53 @@ def test_lists_filter_page_and_count_newest_first(reg: Registry) -> None:
     assert repo.get_plan(reg, plans[2].id).result == {"r": 1}
     with pytest.raises(NotFound):
         repo.get_plan(reg, "0" * 32)
+
+
+def test_a_plans_hand_reference_and_stored_plan_read_back(reg: Registry) -> None:
+    """The plan route's Core paths: ``hand_ref`` gives what ``get_hand`` gives (and the revision after a
+    replacement), an unknown name is ``HandNotFound`` with the registered names; a plan stored with ``add_plan``
+    reads back equal, created_at timezone-aware, its record not sharing JSON with the caller."""
+    _hand(reg, "h2")
+    _hand(reg, "h1")
+    ref = repo.hand_ref(reg, "h1")
+    full = repo.get_hand(reg, "h1")
+    assert (ref.name, ref.revision, ref.manifest_path) == (full.name, full.revision, full.manifest_path)
+    repo.replace_hand(reg, "h1", if_match=full.etag, manifest_path="/y/h1/hand.toml", folder="/y", info={}, files=[])
+    assert (repo.hand_ref(reg, "h1").revision, repo.hand_ref(reg, "h1").manifest_path) == (2, "/y/h1/hand.toml")
+    with pytest.raises(HandNotFound) as err:
+        repo.hand_ref(reg, "nope", field="body.hand")
+    assert err.value.field == "body.hand" and err.value.choices == ["h1", "h2"]
+
+    request, result = {"a": [1, 2]}, {"b": {"c": 0.5}}
+    plan = repo.add_plan(reg, hand="h1", strategy="S", success=False, request=request, result=result)
+    request["a"] = []
+    stored = repo.get_plan(reg, plan.id)
+    assert stored == plan and stored.request == {"a": [1, 2]} and stored.result == {"b": {"c": 0.5}}
+    assert stored.created_at.utcoffset() is not None and not stored.success
+
+
+def test_sqlite_writers_of_one_process_queue_and_time_out_as_busy(tmp_path: Path) -> None:
+    """On SQLite the threads of one process take turns before they reach SQLite's write lock: a writer that cannot
+    have its turn within ``busy_timeout`` gets ``ServiceBusy`` (503 over HTTP), and the held write is not lost."""
+    reg = Registry(f"sqlite:///{tmp_path / 'registry.sqlite3'}", busy_timeout=0.2)
+    entered, release = threading.Event(), threading.Event()
+
+    def hold() -> None:
+        with reg.write():
+            entered.set()
+            release.wait(10)
+            repo.add_plan(reg, hand="h", strategy="S", success=True, request={}, result={})  # re-entrant
+
+    holder = threading.Thread(target=hold)
+    holder.start()
+    assert entered.wait(10)
+    started = time.monotonic()
+    with pytest.raises(ServiceBusy):
+        repo.add_plan(reg, hand="h", strategy="C", success=True, request={}, result={})
+    assert 0.15 <= time.monotonic() - started < 5.0
+    release.set()
+    holder.join(10)
+    assert [p.strategy for p in repo.list_plans(reg)[0]] == ["S"]
+    repo.add_plan(reg, hand="h", strategy="C", success=True, request={}, result={})
+    assert repo.list_plans(reg)[1] == 2
+    reg.dispose()

@@ -41,19 +41,20 @@ def _links(plan_id: str) -> dict[str, str]:
     return {"self": f"/v1/plans/{plan_id}", "image": f"/v1/plans/{plan_id}/image.png"}
 
 
-def _plan_hand(ctx: AppContext, body: PlanIn) -> repo.HandRecord:
+def _plan_hand(ctx: AppContext, body: PlanIn) -> repo.HandRef:
+    """The hand ``body`` names, as the registry holds it now (another process may have replaced it)."""
     try:
-        return ctx.hand(body.hand)
+        return repo.hand_ref(ctx.registry, body.hand)
     except HandNotFound as exc:
         raise InvalidInput("unknown hand", field="hand", value=body.hand, choices=exc.choices) from None
 
 
-def _model_key(hand: repo.HandRecord, body: PlanIn) -> tuple[str, str, None, Criterion]:
+def _model_key(hand: repo.HandRef, body: PlanIn) -> tuple[str, str, None, Criterion]:
     """The arguments that name the hand's planning model for ``body`` (manifest, CS method, settings, criterion)."""
     return (hand.manifest_path, body.cs_method, None, body.cs_criterion)
 
 
-async def _build_planning_model(ctx: AppContext, hand: repo.HandRecord, body: PlanIn) -> None:
+async def _build_planning_model(ctx: AppContext, hand: repo.HandRef, body: PlanIn) -> None:
     """Build the hand's planning model (it simulates the hand's closure) in the compute pool, under its time
     limit; never in the request's thread."""
     from softsig_service.planning import build_planning_model, remember_planning_model
@@ -65,7 +66,7 @@ async def _build_planning_model(ctx: AppContext, hand: repo.HandRecord, body: Pl
     remember_planning_model(model, *key)
 
 
-def _plan_if_ready(ctx: AppContext, body: PlanIn) -> tuple[repo.HandRecord, dict[str, Any] | None]:
+def _plan_if_ready(ctx: AppContext, body: PlanIn) -> tuple[repo.HandRef, dict[str, Any] | None]:
     """The hand of ``body`` and, when this process has its planning model already, the plan (one trip to the
     threadpool for both); None when the model must be built first."""
     from softsig_service.planning import cached_planning_model
@@ -139,7 +140,7 @@ def _planner_options() -> frozenset[str]:
     return frozenset(f.name for f in dataclasses.fields(PlanRequest)) & set(PlanIn.model_fields) - {"hand"}
 
 
-def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRecord) -> dict[str, Any]:
+def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRef) -> dict[str, Any]:
     """Plan ``body`` for the registered ``hand`` with the app's planner and store it (unless ``store`` is false);
     the plan JSON."""
     from softsig_service.objects import object_from_json
