@@ -15,8 +15,9 @@ SQLAlchemy docs recommend): reads start a deferred ``BEGIN``; write sessions (:m
 ``BEGIN IMMEDIATE``, taking SQLite's write lock up front so that two writers queue on the busy timeout rather than
 deadlock on a lock upgrade. On SQLite the writing threads of one process also take turns on a lock of the process
 (bounded by the same busy timeout, then :class:`~softsig_service.errors.ServiceBusy`): SQLite's busy handler
-waits by sleeping 1, 2, 5, 10, ... ms, which costs concurrent writers of one process tens of milliseconds. On PostgreSQL both are plain transactions; signature versions are allocated with a
-row-locking ``UPDATE ... RETURNING`` there as here.
+waits by sleeping 1, 2, 5, 10, ... ms, which costs concurrent writers of one process tens of milliseconds. On
+PostgreSQL both are plain transactions; signature versions are allocated with a row-locking
+``UPDATE ... RETURNING`` there as here.
 
 The schema is made and upgraded by Alembic migrations (:mod:`softsig_service.registry.migrate`), in a write
 transaction, whenever a :class:`Registry` is opened with ``create=True`` (the service's start).
