@@ -39,10 +39,7 @@ class Metrics:
             buckets=(0.001, 0.002, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0),
             registry=self.registry,
         )
-        self.in_progress = Gauge(
-            "softsig_http_requests_in_progress", "requests being served", registry=self.registry,
-            multiprocess_mode="livesum",
-        )  # fmt: skip
+        self.in_progress = self._live_gauge("softsig_http_requests_in_progress", "requests being served")
         self.plan_seconds = Histogram(
             "softsig_plan_seconds",
             "planner wall time per plan [s]",
@@ -50,13 +47,14 @@ class Metrics:
             buckets=(0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.5, 2.0),
             registry=self.registry,
         )
-        self.jobs_running = Gauge(
-            "softsig_jobs_running", "jobs running in worker processes", registry=self.registry,
-            multiprocess_mode="livesum",
-        )  # fmt: skip
+        self.jobs_running = self._live_gauge("softsig_jobs_running", "jobs running in worker processes")
         self.jobs_finished = Counter(
             "softsig_jobs_finished", "jobs that reached a final status", ["kind", "status"], registry=self.registry
         )
+
+    def _live_gauge(self, name: str, documentation: str) -> Gauge:
+        """A gauge of this registry that, with several processes, adds the values of the live ones."""
+        return Gauge(name, documentation, registry=self.registry, multiprocess_mode="livesum")
 
     def exposition(self) -> bytes:
         """The metrics in Prometheus' text format: of every process of the service in multiprocess mode, else of
