@@ -5,19 +5,23 @@ Run: .venv/bin/python benchmarks/bench_api.py [--requests 400] [--concurrency 8]
      .venv/bin/python benchmarks/bench_api.py --per-request --workers 1 --requests 300 --strategy S
                      (server CPU per request, one at a time, beside a cheap route and a rejected body)
 
-The server runs on a free loopback port with a fresh data folder (SQLite registry inside). Each client thread
-keeps one HTTP/1.1 connection (httpx) and posts ``POST /v1/plans`` for the built-in box at random poses
-(x in [0.4, 0.6] m, y in [-0.15, 0.15] m, yaw in [-pi, pi]; fixed seed) until ``--requests`` are done or
-``--seconds`` have passed. Printed per run: requests per second, p50/p90/p99 latency [ms] measured by the client,
-the mean planner time per plan (from each plan's ``timing``), the mean time in the HTTP stack per request from
-the service's Prometheus metrics (every process's together; so the rest is queueing and the client), and the CPU
-used by the client process and by the server's processes over the run, in cores. Runs: concurrency 1 (the
-latency of one request alone), then ``--concurrency`` with plans stored and with ``store: false``.
+The server runs on a free loopback port with a fresh data folder (SQLite registry inside). Each client thread keeps
+one HTTP/1.1 connection (httpx; with ``--client stdlib`` the standard library's ``http.client`` with the bodies
+encoded beforehand, a load generator that leaves more of a small machine's CPU to the server) and posts ``POST
+/v1/plans`` for the built-in box at random poses (x in [0.4, 0.6] m, y in [-0.15, 0.15] m, yaw in [-pi, pi]; fixed
+seed) until ``--requests`` are done or ``--seconds`` have passed. Printed per run: requests per second, p50/p90/p99
+latency [ms] measured by the client, the mean planner time per plan (from each plan's ``timing``), the mean time in
+the HTTP stack per request from the service's Prometheus metrics (every process's together; so the rest is queueing
+and the client), and the CPU used by the client process and by the server's processes over the run, in cores. Runs:
+concurrency 1 (the latency of one request alone), then ``--concurrency`` with plans stored and with ``store:
+false``.
 """
 
 from __future__ import annotations
 
 import argparse
+import http.client
+import json
 import math
 import os
 import random
@@ -31,7 +35,8 @@ import tempfile
 import threading
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
+from urllib.parse import urlsplit
 
 import httpx
 
@@ -113,6 +118,49 @@ def plan_body(rng: random.Random, strategy: str, store: bool) -> dict[str, Any]:
             "strategy": strategy, "store": store}  # fmt: skip
 
 
+class Poster(Protocol):
+    """One client connection that posts JSON bodies: (status, response body)."""
+
+    def post(self, path: str, body: dict[str, Any], encoded: bytes) -> tuple[int, bytes]: ...
+
+    def close(self) -> None: ...
+
+
+class HttpxPoster:
+    """httpx, encoding each body as it posts it."""
+
+    def __init__(self, url: str) -> None:
+        self.client = httpx.Client(base_url=url, headers={"X-API-Key": KEY}, timeout=30)
+
+    def post(self, path: str, body: dict[str, Any], encoded: bytes) -> tuple[int, bytes]:
+        r = self.client.post(path, json=body)
+        return r.status_code, r.content
+
+    def close(self) -> None:
+        self.client.close()
+
+
+class StdlibPoster:
+    """The standard library's ``http.client`` on one kept-alive connection, posting bodies encoded beforehand (head
+    and body leave in one ``send``)."""
+
+    def __init__(self, url: str) -> None:
+        parts = urlsplit(url)
+        self.conn = http.client.HTTPConnection(parts.hostname or "127.0.0.1", parts.port, timeout=30)
+        self.headers = {"X-API-Key": KEY, "Content-Type": "application/json"}
+
+    def post(self, path: str, body: dict[str, Any], encoded: bytes) -> tuple[int, bytes]:
+        self.conn.request("POST", path, body=encoded, headers=self.headers)
+        r = self.conn.getresponse()
+        return r.status, r.read()
+
+    def close(self) -> None:
+        self.conn.close()
+
+
+CLIENTS: dict[str, type[HttpxPoster] | type[StdlibPoster]] = {"httpx": HttpxPoster, "stdlib": StdlibPoster}
+
+
 def run(
     url: str,
     *,
@@ -122,9 +170,11 @@ def run(
     strategy: str,
     store: bool,
     server_pid: int,
+    client: str = "httpx",
 ) -> dict[str, Any]:
     rng = random.Random(7)
     bodies = [plan_body(rng, strategy, store) for _ in range(n)]
+    encoded = [json.dumps(b).encode() for b in bodies]
     latencies: list[float] = []
     planner: list[float] = []  # [s] the planner's own time, from each plan's timing
     failures: list[str] = []
@@ -134,22 +184,25 @@ def run(
 
     def worker() -> None:
         nonlocal next_index
-        with httpx.Client(base_url=url, headers={"X-API-Key": KEY}, timeout=30) as client:
+        poster: Poster = CLIENTS[client](url)
+        try:
             while time.monotonic() < deadline:
                 with lock:
                     if next_index >= n:
                         return
-                    body = bodies[next_index]
+                    i = next_index
                     next_index += 1
                 t0 = time.perf_counter()
-                r = client.post("/v1/plans", json=body)
+                status, content = poster.post("/v1/plans", bodies[i], encoded[i])
                 dt = time.perf_counter() - t0
                 with lock:
-                    if r.status_code == (201 if store else 200):  # a plan not stored is 200 OK
+                    if status == (201 if store else 200):  # a plan not stored is 200 OK
                         latencies.append(dt)
-                        planner.append(r.json()["timing"]["total"])
+                        planner.append(json.loads(content)["timing"]["total"])
                     else:
-                        failures.append(f"{r.status_code} {r.text[:200]}")
+                        failures.append(f"{status} {content[:200]!r}")
+        finally:
+            poster.close()
 
     before = httpx.get(f"{url}/metrics").text
     cpu_client, cpu_server = time.process_time(), process_cpu_seconds(server_pid)
@@ -224,6 +277,9 @@ def main() -> None:
     parser.add_argument("--strategy", choices=("S", "C"), default="C")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="softsig serve --workers")
     parser.add_argument(
+        "--client", choices=tuple(CLIENTS), default="httpx", help="the load generator's HTTP client (see above)"
+    )
+    parser.add_argument(
         "--per-request", action="store_true", help="instead: wall time and server CPU per request, one at a time"
     )
     args = parser.parse_args()
@@ -246,11 +302,11 @@ def main() -> None:
                 return
             rows = [
                 run(url, n=max(50, args.requests // 4), concurrency=1, seconds=args.seconds, strategy=args.strategy,
-                    store=True, server_pid=pid),
+                    store=True, server_pid=pid, client=args.client),
                 run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
-                    strategy=args.strategy, store=True, server_pid=pid),
+                    strategy=args.strategy, store=True, server_pid=pid, client=args.client),
                 run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
-                    strategy=args.strategy, store=False, server_pid=pid),
+                    strategy=args.strategy, store=False, server_pid=pid, client=args.client),
             ]  # fmt: skip
         finally:
             proc.send_signal(signal.SIGINT)
@@ -259,7 +315,7 @@ def main() -> None:
             except subprocess.TimeoutExpired:
                 proc.kill()
     print(f"POST /v1/plans, strategy {args.strategy}, pisa_iit_softhand, box at random poses; {os.cpu_count()} CPUs, "
-          f"{args.workers} service processes")  # fmt: skip
+          f"{args.workers} service processes, client {args.client}")  # fmt: skip
     print(f"{'conc':>4} {'store':>5} {'n':>5} {'fail':>4} {'req/s':>7} {'p50 ms':>7} {'p90 ms':>7} {'p99 ms':>7} "
           f"{'planner ms':>10} {'server ms':>9} {'client CPU':>10} {'server CPU':>10}")  # fmt: skip
     for r in rows:
