@@ -102,6 +102,11 @@ class Settings(BaseSettings):
         1, ge=1, le=64, description="worker processes for synchronous CPU work (signatures, hand checks, images)"
     )
     compute_timeout: float = Field(120.0, gt=0.0, description="wall-time cap of one synchronous computation [s]")
+    plan_concurrency: int = Field(
+        1, ge=1, le=64, description="plans one service process computes at the same time (the others wait their "
+        "turn in order): CPython runs one thread's Python at a time, so more only add lock hand-offs; processes "
+        "(workers) are what plan in parallel",
+    )  # fmt: skip
     warm_planner: bool = Field(True, description="build the planning models of the built-in hands at startup")
     host: str = Field("127.0.0.1", description="address softsig serve listens on")
     port: int = Field(8000, ge=0, le=65535, description="port softsig serve listens on")

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import asyncio
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +28,8 @@ class AppContext:
     api_keys: list[str]
     hands_dir: Path
     plans_dir: Path
+    plan_slots: asyncio.Semaphore = field(default_factory=lambda: asyncio.Semaphore(1))
+    """Plans this process computes at a time (``Settings.plan_concurrency``); later requests wait in order."""
 
     def hand(self, name: str, *, field: str = "hand") -> repo.HandRecord:
         """The registered hand ``name`` as the registry holds it now: another process of the service may have

@@ -6,6 +6,7 @@ import io
 import json
 import math
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -59,35 +60,78 @@ def test_plan_c_is_the_planners_plan_and_is_stored(api: TestClient) -> None:
     assert set(direction) == {"x", "y", "z"} and math.isclose(direction["z"], -1.0, abs_tol=1e-6)
 
 
-def test_concurrent_plans(api: TestClient) -> None:
-    """Plans from several threads at once give exactly the plans made one at a time (a race in the planner's
-    shared state would change the joints, not only the status)."""
+def test_concurrent_plans(tmp_path: Path) -> None:
+    """Plans from several threads at once, four planning at a time in one process (``plan_concurrency=4``), give
+    exactly the plans made one at a time (a race in the planner's shared state would change the joints, not only
+    the status)."""
     bodies = [
         {"hand": "pisa_iit_softhand", "strategy": "C", "store": False,
          "object": {**BOX, "pose": {"x": 0.45 + 0.01 * i, "y": -0.1 + 0.05 * k, "yaw": 0.3 * i - k}}}
         for k in range(4) for i in range(6)
     ]  # fmt: skip
-    sequential = [api.post("/v1/plans", json=b, headers=AUTH).json() for b in bodies]
-    results: dict[int, tuple[int, dict[str, Any]]] = {}
-    start = threading.Barrier(4)
+    with TestClient(create_app(make_settings(tmp_path, plan_concurrency=4))) as api:
+        sequential = [api.post("/v1/plans", json=b, headers=AUTH).json() for b in bodies]
+        results: dict[int, tuple[int, dict[str, Any]]] = {}
+        start = threading.Barrier(4)
 
-    def worker(k: int) -> None:
-        start.wait()
-        for j in range(k, len(bodies), 4):
-            r = api.post("/v1/plans", json=bodies[j], headers=AUTH)
-            results[j] = (r.status_code, r.json())
+        def worker(k: int) -> None:
+            start.wait()
+            for j in range(k, len(bodies), 4):
+                r = api.post("/v1/plans", json=bodies[j], headers=AUTH)
+                results[j] = (r.status_code, r.json())
 
-    threads = [threading.Thread(target=worker, args=(k,)) for k in range(4)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
+        threads = [threading.Thread(target=worker, args=(k,)) for k in range(4)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
     assert sorted(results) == list(range(len(bodies)))
     for j, (status, plan) in results.items():
         assert status == 200, plan  # store: false creates nothing
         assert plan["success"] == sequential[j]["success"] and plan["reasons"] == sequential[j]["reasons"]
         if plan["success"]:
             assert np.allclose(plan["joint_positions"], sequential[j]["joint_positions"], atol=1e-9)
+
+
+@pytest.mark.parametrize("slots", [1, 3])
+def test_a_process_plans_as_many_at_a_time_as_configured(tmp_path: Path, slots: int) -> None:
+    """``plan_concurrency`` plans run at once in one process, however many requests arrive together; the others
+    wait their turn and are answered too (default 1: CPython's threads would only take turns on its lock)."""
+    running, most = 0, 0
+    lock = threading.Lock()
+    body = {"hand": "pisa_iit_softhand", "strategy": "S", "store": False, "object": BOX}
+    with TestClient(create_app(make_settings(tmp_path, plan_concurrency=slots))) as api:
+        planner = api.app.state.ctx.planner  # type: ignore[attr-defined]
+        plan = planner.plan
+
+        def counted(req: PlanRequest) -> Any:
+            nonlocal running, most
+            with lock:
+                running += 1
+                most = max(most, running)
+            try:
+                time.sleep(0.2)  # long enough for every request sent together to arrive meanwhile
+                return plan(req)
+            finally:
+                with lock:
+                    running -= 1
+
+        assert api.post("/v1/plans", json=body, headers=AUTH).status_code == 200  # the hand's model is built
+        planner.plan = counted
+        start = threading.Barrier(6)
+        statuses: list[int] = []
+
+        def client() -> None:
+            start.wait()
+            statuses.append(api.post("/v1/plans", json=body, headers=AUTH).status_code)
+
+        threads = [threading.Thread(target=client) for _ in range(6)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    assert statuses == [200] * 6
+    assert most == slots
 
 
 def test_plan_image_is_a_real_drawing(api: TestClient) -> None:

@@ -1,9 +1,11 @@
 """``/v1/plans``: plan a UR5 top grasp (synchronous), get a stored plan, draw it.
 
-Planning is CPU-bound but fast (milliseconds): the handler is a plain function, so FastAPI runs it in its
-threadpool, never in the event loop; the app's one :class:`~softsig_service.planning.planner.Planner` keeps its
-models and solvers between requests. An infeasible request is not an error: the plan has ``success: false`` and
-machine-readable ``reasons``.
+Planning is CPU-bound but fast (milliseconds): it runs in the threadpool, never in the event loop, and at most
+``Settings.plan_concurrency`` plans at a time per process (default 1: CPython runs one thread's Python at a time,
+so more threads only add hand-offs of its lock, which also stretch the registry's write transactions; the
+service's processes are what plan in parallel). The app's one :class:`~softsig_service.planning.planner.Planner`
+keeps its models and solvers between requests and is safe to call from several threads. An infeasible request
+is not an error: the plan has ``success: false`` and machine-readable ``reasons``.
 """
 
 from __future__ import annotations
@@ -177,10 +179,12 @@ def _plan_out(rec: repo.PlanRecord) -> dict[str, Any]:
 async def create_plan(ctx: Ctx, body: PlanIn, response: Response) -> dict[str, Any]:
     """Plan a UR5 top grasp of an object with strategy S, C or R; the plan (``success`` may be false, with
     ``reasons``): 201 with ``Location`` when stored, 200 with ``store: false`` (nothing is created)."""
-    hand, data = await run_in_threadpool(_plan_if_ready, ctx, body)
+    async with ctx.plan_slots:  # this process's turn to plan (Settings.plan_concurrency)
+        hand, data = await run_in_threadpool(_plan_if_ready, ctx, body)
     if data is None:
-        await _build_planning_model(ctx, hand, body)
-        data = await run_in_threadpool(make_plan, ctx, body, hand)
+        await _build_planning_model(ctx, hand, body)  # in the compute pool, without holding a turn
+        async with ctx.plan_slots:
+            data = await run_in_threadpool(make_plan, ctx, body, hand)
     if data.get("id"):
         response.headers["Location"] = f"/v1/plans/{data['id']}"
     else:
