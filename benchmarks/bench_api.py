@@ -4,6 +4,9 @@ Run: .venv/bin/python benchmarks/bench_api.py [--requests 400] [--concurrency 8]
      [--workers N]   (service processes, default: every CPU)
      .venv/bin/python benchmarks/bench_api.py --per-request --workers 1 --requests 300 --strategy S
                      (server CPU per request, one at a time, beside a cheap route and a rejected body)
+     .venv/bin/python benchmarks/bench_api.py --baseline 5354fe9 --rounds 3 --client stdlib
+                     (also the service of an earlier revision, exported with ``git archive`` and served from its
+                     own folder; A B A B ... in turn, a fresh data folder per run)
 
 The server runs on a free loopback port with a fresh data folder (SQLite registry inside). Each client thread keeps
 one HTTP/1.1 connection (httpx; with ``--client stdlib`` the standard library's ``http.client`` with the bodies
@@ -20,6 +23,7 @@ false``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import http.client
 import json
 import math
@@ -34,11 +38,13 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Protocol
 from urllib.parse import urlsplit
 
 import httpx
+from baseline_tree import export_revision, tree_env
 
 KEY = "bench-key"
 
@@ -49,12 +55,15 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def start_server(data: Path, workers: int) -> tuple[subprocess.Popen[bytes], str]:
+def start_server(data: Path, workers: int, tree: Path | None = None) -> tuple[subprocess.Popen[bytes], str]:
+    """``softsig serve`` of the package in ``tree`` (None: the working tree) on a free loopback port; (process,
+    URL) once it answers ``/readyz``."""
     port = free_port()
-    env = {**os.environ, "SOFTSIG_DATA_DIR": str(data), "SOFTSIG_API_KEYS": KEY, "SOFTSIG_LOG_LEVEL": "warning"}
+    env, cwd = tree_env(tree)
+    env.update(SOFTSIG_DATA_DIR=str(data), SOFTSIG_API_KEYS=KEY, SOFTSIG_LOG_LEVEL="warning")
     cmd = [sys.executable, "-m", "softsig_service.cli", "serve", "--host", "127.0.0.1", "--port", str(port),
            "--workers", str(workers)]  # fmt: skip
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(cmd, env=env, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     url = f"http://127.0.0.1:{port}"
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
@@ -269,6 +278,33 @@ def per_request(url: str, server_pid: int, n: int, strategy: str) -> None:
             print(f"{name:30s} {wall / n * 1e3:8.2f} {cpu_server / n * 1e3:13.2f} {cpu_client / n * 1e3:13.2f}")
 
 
+def print_row(side: str, r: dict[str, Any]) -> None:
+    """One line of the table (``side``: which package served it)."""
+    print(f"{side:>10} {r['concurrency']:4d} {('yes' if r['store'] else 'no'):>5} {r['requests']:5d} "
+          f"{r['failures']:4d} {r['rps']:7.1f} {r['p50']:7.2f} {r['p90']:7.2f} {r['p99']:7.2f} "
+          f"{r['planner_mean']:10.2f} {r['server_mean']:9.2f} {r['client_cpu']:10.2f} {r['server_cpu']:10.2f}",
+          flush=True)  # fmt: skip
+    if r["first_failure"]:
+        print(f"     first failure: {r['first_failure']}")
+
+
+@contextlib.contextmanager
+def serving(data: Path, workers: int, tree: Path | None, strategy: str) -> Iterator[tuple[str, int]]:
+    """A started, idle, warmed-up service of the package in ``tree`` (None: the working tree) with its data in
+    ``data``: (URL, server process id); stopped at the end."""
+    proc, url = start_server(data, workers, tree)
+    try:
+        wait_idle(proc.pid)
+        run(url, n=30, concurrency=2, seconds=30, strategy=strategy, store=True, server_pid=proc.pid)  # warm-up
+        yield url, proc.pid
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--requests", type=int, default=400, help="requests per run")
@@ -282,48 +318,37 @@ def main() -> None:
     parser.add_argument(
         "--per-request", action="store_true", help="instead: wall time and server CPU per request, one at a time"
     )
+    parser.add_argument("--baseline", metavar="REV", help="also serve the package at this git revision (see above)")
+    parser.add_argument("--rounds", type=int, default=1, help="runs of each side, in turn (A B A B ...)")
     args = parser.parse_args()
-    with tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp:
-        proc, url = start_server(Path(tmp), args.workers)
-        try:
-            pid = proc.pid
-            wait_idle(pid)
-            run(
-                url,
-                n=30,
-                concurrency=2,
-                seconds=30,
-                strategy=args.strategy,
-                store=True,
-                server_pid=pid,
-            )  # warm-up
-            if args.per_request:
-                per_request(url, pid, args.requests, args.strategy)
-                return
-            rows = [
-                run(url, n=max(50, args.requests // 4), concurrency=1, seconds=args.seconds, strategy=args.strategy,
-                    store=True, server_pid=pid, client=args.client),
-                run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
-                    strategy=args.strategy, store=True, server_pid=pid, client=args.client),
-                run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
-                    strategy=args.strategy, store=False, server_pid=pid, client=args.client),
-            ]  # fmt: skip
-        finally:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+    if args.per_request:
+        with (
+            tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp,
+            serving(Path(tmp), args.workers, None, args.strategy) as (url, pid),
+        ):
+            per_request(url, pid, args.requests, args.strategy)
+        return
     print(f"POST /v1/plans, strategy {args.strategy}, pisa_iit_softhand, box at random poses; {os.cpu_count()} CPUs, "
           f"{args.workers} service processes, client {args.client}")  # fmt: skip
-    print(f"{'conc':>4} {'store':>5} {'n':>5} {'fail':>4} {'req/s':>7} {'p50 ms':>7} {'p90 ms':>7} {'p99 ms':>7} "
-          f"{'planner ms':>10} {'server ms':>9} {'client CPU':>10} {'server CPU':>10}")  # fmt: skip
-    for r in rows:
-        print(f"{r['concurrency']:4d} {('yes' if r['store'] else 'no'):>5} {r['requests']:5d} {r['failures']:4d} "
-              f"{r['rps']:7.1f} {r['p50']:7.2f} {r['p90']:7.2f} {r['p99']:7.2f} {r['planner_mean']:10.2f} "
-              f"{r['server_mean']:9.2f} {r['client_cpu']:10.2f} {r['server_cpu']:10.2f}")  # fmt: skip
-        if r["first_failure"]:
-            print(f"     first failure: {r['first_failure']}")
+    print(f"{'side':>10} {'conc':>4} {'store':>5} {'n':>5} {'fail':>4} {'req/s':>7} {'p50 ms':>7} {'p90 ms':>7} "
+          f"{'p99 ms':>7} {'planner ms':>10} {'server ms':>9} {'client CPU':>10} {'server CPU':>10}")  # fmt: skip
+    with tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp:
+        sides: list[tuple[str, Path | None]] = [("this tree", None)]
+        if args.baseline is not None:
+            sides.insert(0, (args.baseline[:10], export_revision(args.baseline, Path(tmp))))
+        for r in range(args.rounds):
+            for i, (name, tree) in enumerate(sides):
+                with serving(Path(tmp) / f"data-{r}-{i}", args.workers, tree, args.strategy) as (url, pid):
+                    rows = [
+                        run(url, n=max(50, args.requests // 4), concurrency=1, seconds=args.seconds,
+                            strategy=args.strategy, store=True, server_pid=pid, client=args.client),
+                        run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
+                            strategy=args.strategy, store=True, server_pid=pid, client=args.client),
+                        run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
+                            strategy=args.strategy, store=False, server_pid=pid, client=args.client),
+                    ]  # fmt: skip
+                for row in rows:
+                    print_row(name, row)
     print("planner ms: mean planner time per plan (each plan's timing.total); server ms: mean time the request")
     print("spent in the server's HTTP stack (softsig_http_request_duration_seconds, route /v1/plans, all processes).")
     print("client CPU / server CPU: CPU time of the client process / of every server process over the run's wall")

@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import statistics
 import subprocess
 import sys
@@ -36,8 +35,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from baseline_tree import export_revision, tree_env
 
-ROOT = Path(__file__).resolve().parent.parent
 PARTS = ("strategy", "ik", "collision")
 
 
@@ -134,9 +133,8 @@ def _child(args: argparse.Namespace, package_root: Path | None, path: Path) -> d
     cmd = [sys.executable, str(Path(__file__).resolve()), "--emit", str(path), "--n", str(args.n),
            "--hand", args.hand, "--seed", str(args.seed), "--mesh-n", str(args.mesh_n),
            "--mesh-vertices", *map(str, args.mesh_vertices)]  # fmt: skip
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(package_root or ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-    subprocess.run(cmd, check=True, env=env, cwd=str(package_root or ROOT))
+    env, cwd = tree_env(package_root)
+    subprocess.run(cmd, check=True, env=env, cwd=cwd)
     with path.open() as f:
         data: dict[str, Any] = json.load(f)
     return data
@@ -234,10 +232,7 @@ def main() -> None:
         report(args, measure(args), None)
         return
     with tempfile.TemporaryDirectory(prefix="bench-baseline-") as tmp:
-        base_root = Path(tmp) / "tree"
-        base_root.mkdir()
-        archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.baseline], check=True, capture_output=True)
-        subprocess.run(["tar", "-x", "-C", str(base_root)], input=archive.stdout, check=True)
+        base_root = export_revision(args.baseline, Path(tmp))
         before = after = None
         for r in range(args.rounds):
             before = _merge(before, _child(args, base_root, Path(tmp) / f"before{r}.json"))
