@@ -110,7 +110,6 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
                 api_keys=[k.get_secret_value() for k in settings.api_keys],
                 hands_dir=hands_dir,
                 plans_dir=plans_dir,
-                plan_slots=asyncio.Semaphore(settings.plan_concurrency),
             )
             if settings.retention_days is not None:
                 await run_in_threadpool(purge_old, registry, settings.retention_days, plans_dir, jobs_dir)

@@ -28,8 +28,11 @@ class AppContext:
     api_keys: list[str]
     hands_dir: Path
     plans_dir: Path
-    plan_slots: asyncio.Semaphore = field(default_factory=lambda: asyncio.Semaphore(1))
-    """Plans this process computes at a time (``Settings.plan_concurrency``); later requests wait in order."""
+    plan_slots: asyncio.Semaphore = field(init=False)
+    """Turns to plan: ``settings.plan_concurrency`` plans at a time in this process; later requests wait in order."""
+
+    def __post_init__(self) -> None:
+        self.plan_slots = asyncio.Semaphore(self.settings.plan_concurrency)
 
     def hand(self, name: str, *, field: str = "hand") -> repo.HandRecord:
         """The registered hand ``name`` as the registry holds it now: another process of the service may have
