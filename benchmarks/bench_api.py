@@ -332,6 +332,9 @@ def main() -> None:
           f"{args.workers} service processes, client {args.client}")  # fmt: skip
     print(f"{'side':>10} {'conc':>4} {'store':>5} {'n':>5} {'fail':>4} {'req/s':>7} {'p50 ms':>7} {'p90 ms':>7} "
           f"{'p99 ms':>7} {'planner ms':>10} {'server ms':>9} {'client CPU':>10} {'server CPU':>10}")  # fmt: skip
+    # (requests, concurrency, stored): one request at a time, then --concurrency with plans stored and not
+    runs = ((max(50, args.requests // 4), 1, True), (args.requests, args.concurrency, True),
+            (args.requests, args.concurrency, False))  # fmt: skip
     with tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp:
         sides: list[tuple[str, Path | None]] = [("this tree", None)]
         if args.baseline is not None:
@@ -339,16 +342,20 @@ def main() -> None:
         for r in range(args.rounds):
             for i, (name, tree) in enumerate(sides):
                 with serving(Path(tmp) / f"data-{r}-{i}", args.workers, tree, args.strategy) as (url, pid):
-                    rows = [
-                        run(url, n=max(50, args.requests // 4), concurrency=1, seconds=args.seconds,
-                            strategy=args.strategy, store=True, server_pid=pid, client=args.client),
-                        run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
-                            strategy=args.strategy, store=True, server_pid=pid, client=args.client),
-                        run(url, n=args.requests, concurrency=args.concurrency, seconds=args.seconds,
-                            strategy=args.strategy, store=False, server_pid=pid, client=args.client),
-                    ]  # fmt: skip
-                for row in rows:
-                    print_row(name, row)
+                    for n, concurrency, store in runs:
+                        print_row(
+                            name,
+                            run(
+                                url,
+                                n=n,
+                                concurrency=concurrency,
+                                seconds=args.seconds,
+                                strategy=args.strategy,
+                                store=store,
+                                server_pid=pid,
+                                client=args.client,
+                            ),
+                        )
     print("planner ms: mean planner time per plan (each plan's timing.total); server ms: mean time the request")
     print("spent in the server's HTTP stack (softsig_http_request_duration_seconds, route /v1/plans, all processes).")
     print("client CPU / server CPU: CPU time of the client process / of every server process over the run's wall")
