@@ -60,6 +60,7 @@ from softsig_service.arm.collision_report import (
     make_report,
     min_optional,
 )
+from softsig_service.arm.pair_manager import PairManager
 from softsig_service.arm.shapes import (
     HandShape,
     ShapeSpec,
@@ -70,6 +71,8 @@ from softsig_service.errors import InvalidInput
 from softsig_service.geometry.transforms import check_transform
 
 FloatArray = NDArray[np.float64]
+SelectionKey = tuple[bool, bool, bool, bool, bool]
+"""Flags that select pairs: (check_table, check_object, check_self, ignore_hand_object, ignore_hand_table)."""
 
 
 _BUILT_WORLDS = 8
@@ -214,14 +217,12 @@ class CollisionWorld:
             reqs[p.index].security_margin = margins[p.category]
         self._w.applied_margins = margins
 
-    def _selected(
-        self, check_table: bool, check_object: bool, check_self: bool, ignore_hand_object: bool,
-        ignore_hand_table: bool,
-    ) -> tuple[list[PairInfo], NDArray[np.intp]]:  # fmt: skip
-        """The pairs the flags select, and their indices (built once per combination of flags)."""
-        key = (check_table, check_object, check_self, ignore_hand_object, ignore_hand_table)
+    def _selected(self, key: SelectionKey) -> tuple[list[PairInfo], NDArray[np.intp]]:
+        """The pairs the flags ``key`` = (check_table, check_object, check_self, ignore_hand_object,
+        ignore_hand_table) select, and their indices (built once per combination of flags)."""
         hit = self._w.selections.get(key)
         if hit is None:
+            check_table, check_object, check_self, ignore_hand_object, ignore_hand_table = key
             wanted = {"table": check_table, "object": check_object, "self": check_self}
             sel = [
                 p for p in self._w.pairs
@@ -231,22 +232,36 @@ class CollisionWorld:
             hit = self._w.selections[key] = (sel, np.array([p.index for p in sel], dtype=np.intp))
         return hit
 
+    def _manager(self, key: SelectionKey, margins: dict[str, float]) -> PairManager | None:
+        """The :class:`PairManager` of the selection ``key`` with ``margins`` [m] applied (built once per
+        selection; None when it cannot hold this world's geometries)."""
+        w = self._w
+        if key not in w.managers:
+            pairs, _ = self._selected(key)
+            try:
+                w.managers[key] = PairManager(
+                    self._model, w.gm, [p.index for p in pairs], {p.index: p.category for p in pairs}
+                )
+            except ValueError:
+                w.managers[key] = None
+        manager = w.managers[key]
+        if manager is not None:
+            manager.set_margins(margins)
+        return manager
+
     def check(self, q: ArrayLike, **options: Unpack[CheckOptions]) -> CollisionReport:
         """Check the UR5 configuration ``q`` (``(6,)`` [rad]) with the :class:`CheckOptions` given (margins [m],
         pair groups, distances)."""
         qa = self.ur5.check_q(q)
-        selection, margins, distances = self._options(options)
-        return self._check(qa, selection, margins, distances)
+        key, margins, distances = self._options(options)
+        return self._check(qa, self._selected(key), margins, distances)
 
-    def _options(self, o: CheckOptions) -> tuple[tuple[list[PairInfo], NDArray[np.intp]], dict[str, float], bool]:
-        """The pairs selected, the margins [m] and whether distances are asked, from a call's options."""
-        selection = self._selected(o.get("check_table", True), o.get("check_object", True), o.get("check_self", True),
-                                   o.get("ignore_hand_object", False), o.get("ignore_hand_table", False))  # fmt: skip
-        return (
-            selection,
-            self._margins(o.get("margin"), o.get("table_margin"), o.get("self_margin")),
-            o.get("distances", True),
-        )
+    def _options(self, o: CheckOptions) -> tuple[SelectionKey, dict[str, float], bool]:
+        """The selection's flags, the margins [m] and whether distances are asked, from a call's options."""
+        key = (o.get("check_table", True), o.get("check_object", True), o.get("check_self", True),
+               o.get("ignore_hand_object", False), o.get("ignore_hand_table", False))  # fmt: skip
+        margins = self._margins(o.get("margin"), o.get("table_margin"), o.get("self_margin"))
+        return key, margins, o.get("distances", True)
 
     def _check(
         self,
@@ -311,19 +326,25 @@ class CollisionWorld:
             raise InvalidInput(f"expected an (N, {self.ur5.nq}) array of configurations", field="qs")
         if not np.all(np.isfinite(Q)):
             raise InvalidInput("contains NaN or infinite values", field="qs")
-        selection, m, distances = self._options(options)
+        key, m, distances = self._options(options)
+        selection = self._selected(key)
         stop_at_first = options.get("stop_at_first", True)
         hits: list[tuple[str, str]] = []
         reasons: list[str] = []
         first: int | None = None
         dmin: list[float | None] = [None, None, None, None]
         checked = 0
-        masks = self._may_collide(Q, selection, m)  # every waypoint at once
+        # verdicts alone: one C++ call per waypoint, the pairs asked one by one only where it finds a collision
+        manager = None if distances else self._manager(key, m)
+        masks = None if manager is not None else self._may_collide(Q, selection, m)  # every waypoint at once
         for i, q in enumerate(Q):
-            if not distances and not masks[i].any():
+            if manager is not None and not manager.collides(self._data, q):
+                checked += 1
+                continue
+            if masks is not None and not distances and not masks[i].any():
                 checked += 1  # nothing can collide here and no distance is asked: free
                 continue
-            r = self._check(q, selection, m, distances, masks[i])
+            r = self._check(q, selection, m, distances, None if masks is None else masks[i])
             checked += 1
             for j, d in enumerate(
                 (

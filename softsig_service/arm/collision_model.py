@@ -24,6 +24,7 @@ from softsig_service.arm.collision_report import (
     TABLE_NAME,
     Category,
 )
+from softsig_service.arm.pair_manager import PairManager, configure_requests
 from softsig_service.arm.shapes import HandShape
 from softsig_service.arm.ur5 import UR5
 
@@ -48,7 +49,8 @@ class PairInfo:
 class WorldModel:
     """Pinocchio geometry model and data of a world, its pairs and broad phase, and the object it was built for
     (``obj``: coal geometry and pose ``T_world_shape``; ``key``: the shape's identity). ``selections`` caches
-    the pairs chosen by a set of flags; ``applied_margins`` the margins last written into the requests."""
+    the pairs chosen by a set of flags, ``managers`` their :class:`PairManager` (None: a geometry the manager
+    cannot hold); ``applied_margins`` the margins last written into ``gd``'s requests."""
 
     gm: pin.GeometryModel
     gd: pin.GeometryData
@@ -63,6 +65,7 @@ class WorldModel:
     selections: dict[tuple[bool, bool, bool, bool, bool], tuple[list[PairInfo], NDArray[np.intp]]] = field(
         default_factory=dict
     )
+    managers: dict[tuple[bool, bool, bool, bool, bool], PairManager | None] = field(default_factory=dict)
     applied_margins: dict[str, float] = field(default_factory=dict)
 
 
@@ -127,12 +130,7 @@ def build_world_model(
         k = len(pairs)
         pairs.append(PairInfo(k, cat, ho, (names[a], names[b]), a in hand_set))
     gd = pin.GeometryData(gm)
-    for req in gd.collisionRequests:
-        # coal 3.0.3 without contact computation can report "free" when a capsule's core segment just
-        # touches a box face (seen: a capsule 1 cm deep in a box, ~1 in 4000 random capsule/box poses).
-        # Asking for one contact runs EPA on overlap and gets these right.
-        req.enable_contact = True
-        req.num_max_contacts = 1
+    configure_requests(gd)
     pair_a, pair_b = pair_arrays([(a, b) for a, b, _, _ in specs])
     return WorldModel(
         gm=gm,

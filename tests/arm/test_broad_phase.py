@@ -89,3 +89,34 @@ def test_alternating_objects_reuse_their_worlds_and_answer_like_fresh_ones(ur5: 
         assert a.min_distance_object == pytest.approx(b.min_distance_object, abs=1e-6)
         assert a.min_distance_table == pytest.approx(b.min_distance_table, abs=1e-6)
     assert len(world._built) == len(shapes)
+
+
+@pytest.mark.parametrize("hand", ["small", "pisa_iit_softhand"])
+@pytest.mark.parametrize("ignore_hand", [False, True])
+def test_verdict_only_checks_agree_with_coal_on_every_pair(ur5: UR5, hand: str, ignore_hand: bool) -> None:
+    """Without distances, waypoints are checked by Pinocchio's broad-phase manager in one call each; the verdict
+    and the pairs reported are those of the pair-by-pair check, margins and left-out pairs included."""
+    shapes = HAND if hand == "small" else planning_model(hand).shapes
+    world = CollisionWorld(ur5, shapes, table_height=0.0, margin=0.01, table_margin=0.005, self_margin=0.002)
+    rng = np.random.default_rng(5)
+    shape, pose = ObjectShape("box", (0.03, 0.05, 0.04)), make_transform(rot_z(0.3), [0.45, 0.1, 0.04])
+    world.set_object(shape, pose)
+    collided = free = 0
+    for k in range(240):
+        if k % 2:
+            q = ur5.random_configuration(rng)
+        else:
+            target = make_transform(rot_z(rng.uniform(-math.pi, math.pi)) @ rot_x(math.pi), pose[:3, 3])
+            target[:3, 3] += (rng.uniform(-0.05, 0.05), rng.uniform(-0.05, 0.05), rng.uniform(0.0, 0.2))
+            q = ur5.solve_ik(target, np.array([0.0, -1.2, 1.5, -1.9, -1.57, 0.0])).q
+        report = world.check_waypoints(
+            [q], distances=False, ignore_hand_object=ignore_hand, ignore_hand_table=ignore_hand
+        )
+        # check() asks every selected pair the bounding volumes keep (the test above: the same as all pairs)
+        expected = world.check(q, distances=False, ignore_hand_object=ignore_hand, ignore_hand_table=ignore_hand).pairs
+        assert sorted(report.pairs) == sorted(expected), k
+        assert report.in_collision == bool(expected)
+        collided += bool(expected)
+        free += not expected
+    assert collided > 40 and free > 40
+    assert world._w.managers[(True, True, True, ignore_hand, ignore_hand)] is not None  # the manager answered
