@@ -17,6 +17,8 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 
 _EYE6 = np.eye(6)
+_POLISHED = 1e-3
+"""A start within this fraction of both tolerances is returned as it is (:func:`levenberg_marquardt`)."""
 
 
 def lm_error(
@@ -29,6 +31,16 @@ def lm_error(
     t = np.asarray(iMd.translation)
     w = e[3:]
     return iMd, e, math.sqrt(float(t @ t)), math.sqrt(float(w @ w)), float(e @ e)
+
+
+def settled(
+    model: pin.Model, data: pin.Data, frame_id: int, target: pin.SE3, q: FloatArray, tol_p: float, tol_r: float
+) -> tuple[float, float] | None:
+    """(position error [m], rotation error [rad]) of ``q`` [rad] when :func:`levenberg_marquardt` would return it
+    unchanged after 0 iterations (within ``_POLISHED`` of the tolerances ``tol_p`` [m], ``tol_r`` [rad]); else
+    None. One forward kinematics."""
+    _, _, pe, re, _ = lm_error(model, data, frame_id, target, q)
+    return (pe, re) if pe <= _POLISHED * tol_p and re <= _POLISHED * tol_r else None
 
 
 def levenberg_marquardt(
@@ -54,7 +66,7 @@ def levenberg_marquardt(
     polish = 2  # once within tolerance, up to two more Newton steps towards 1e-3 of it
     while it < max_iterations:
         if pe <= tol_p and re <= tol_r:
-            if polish == 0 or (pe <= 1e-3 * tol_p and re <= 1e-3 * tol_r):
+            if polish == 0 or (pe <= _POLISHED * tol_p and re <= _POLISHED * tol_r):
                 return q, pe, re, it, True
             polish -= 1
         it += 1

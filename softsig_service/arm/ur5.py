@@ -35,7 +35,7 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 from typing_extensions import Unpack
 
-from softsig_service.arm.numeric_ik import levenberg_marquardt
+from softsig_service.arm.numeric_ik import levenberg_marquardt, settled
 from softsig_service.arm.robots_dir import SRDF_RELATIVE, URDF_RELATIVE, find_robots_dir
 from softsig_service.arm.ur_ik import URParameters, ur_parameters
 from softsig_service.errors import FrameNotFound, InvalidInput
@@ -377,7 +377,13 @@ class UR5:
             wrapped, valid = self._wrap_rows(branches, reference)
             wrapped = wrapped[valid]
             d = wrapped - reference
-            for i in np.argsort(np.sqrt((d * d).sum(axis=1)), kind="stable").tolist():
+            order = np.argsort(np.sqrt((d * d).sum(axis=1)), kind="stable").tolist()
+            if order and not exhaustive:  # the common case: the nearest branch is exact, as run() would find
+                q_near = wrapped[order[0]].copy()
+                exact = settled(model, self.data, fid, M, q_near, position_tolerance, rotation_tolerance)
+                if exact is not None:
+                    return IKResult(True, q_near, exact[0], exact[1], 0, 1, None, (q_near,))
+            for i in order:
                 if run(wrapped[i], prewrapped=True) and not exhaustive:
                     break
         # 2. current_q, then the caller's extra seeds

@@ -95,11 +95,12 @@ def _pose(R: NDArray[np.float64], t: NDArray[np.float64]) -> NDArray[np.float64]
 class _Posed:
     """The hand's terms at one orientation R, all at zero translation (add the flange position t).
 
-    ``lowest`` [m]: world z of the lowest point of all shapes; ``centres_in_object`` (n, 3) [m]: the shapes'
-    bounding-sphere centres in the object's primitive axes; ``rotations`` (n, 3, 3) and
-    ``origins`` (n, 3) [m]: each shape's pose in the world.
+    ``lows`` (n,) [m]: world z of each shape's lowest point, ``lowest`` [m] the smallest of them;
+    ``centres_in_object`` (n, 3) [m]: the shapes' bounding-sphere centres in the object's primitive axes;
+    ``rotations`` (n, 3, 3) and ``origins`` (n, 3) [m]: each shape's pose in the world.
     """
 
+    lows: NDArray[np.float64]
     lowest: float
     centres_in_object: NDArray[np.float64]
     rotations: NDArray[np.float64]
@@ -129,6 +130,8 @@ class HandClearance:
         self._object_centre = np.zeros(3)
         self._object_R = np.eye(3)
         self._object_half = np.zeros(3)
+        self._object_top = 0.0
+        """[m] world z of the highest point of the object's bounding box (no object: unused)."""
         if obj is not None:
             geom = local_aabb(object_geometry(obj.primitive()))
             T_obj = obj.primitive_pose
@@ -137,8 +140,9 @@ class HandClearance:
             self._object_R = T_obj[:3, :3]
             self._object_centre = T_obj[:3, 3] + T_obj[:3, :3] @ (0.5 * (lo + hi))
             self._object_half = 0.5 * (hi - lo)
+            self._object_top = float(self._object_centre[2] + np.abs(self._object_R[2]) @ self._object_half)
         self._req = coal.DistanceRequest()
-        self._last: tuple[bytes, tuple[float, float]] | None = None  # the last pose asked and its answer
+        self._last: tuple[bytes, float, float, bool] | None = None  # the last pose asked and its answer
         self._orientations: dict[bytes, _Posed] = {}
 
     @property
@@ -150,14 +154,30 @@ class HandClearance:
         """(to the table, to the object) [m]; negative inside; +inf for a missing object.
 
         The table's is exact (the lowest point of the hand's primitives); the object's are coal distances, queried
-        only for shapes whose lower bound could beat the best found so far: the gap between the shape's bounding
-        sphere and the object's bounding box (signed distance in the object's primitive frame; the box lies inside
-        the object's bounding sphere, so this is the tighter of the two). What depends on the hand's orientation
-        alone is computed once per orientation (:class:`_Posed`): a descent only translates.
+        only for shapes whose lower bound could beat the best found so far. A shape's lower bound is the larger
+        of two: the gap between its bounding sphere and the object's bounding box (signed distance in the
+        object's primitive frame; the box lies inside the object's bounding sphere, so this is the tighter of the
+        two), and the height of its lowest point above the box's highest (two sets are at least as far apart as
+        along any direction; overlapping by h along it, one translation of h separates them, so no deeper than
+        h either). What depends on the hand's orientation alone is computed once per orientation
+        (:class:`_Posed`): a descent only translates.
         """
+        d_table, d_obj, _ = self._measure(T_world_hand, nearest_only=False)
+        return d_table, d_obj
+
+    def nearest(self, T_world_hand: NDArray[np.float64]) -> tuple[float, str]:
+        """The hand's clearance [m] to the nearer of table and object at ``T_world_hand`` (negative inside), and
+        which it is (``"table"`` on a tie): ``min(distances(T_world_hand))``, with coal asked only about shapes
+        that could come nearer the object than the table is."""
+        d_table, d_obj, _ = self._measure(T_world_hand, nearest_only=True)
+        return (d_obj, "object") if d_obj < d_table else (d_table, "table")
+
+    def _measure(self, T_world_hand: NDArray[np.float64], nearest_only: bool) -> tuple[float, float, bool]:
+        """(d_table, d_obj, whether d_obj is exact) [m]. With ``nearest_only`` the object's distance is exact only
+        where it is below the table's; elsewhere it is some value not below the table's."""
         key = T_world_hand.tobytes()
-        if self._last is not None and self._last[0] == key:
-            return self._last[1]  # the descent asks again at the pose where it stopped
+        if self._last is not None and self._last[0] == key and (self._last[3] or nearest_only):
+            return self._last[1:]  # the descent asks again at the pose where it stopped
         posed = self._posed(T_world_hand[:3, :3])
         t = T_world_hand[:3, 3]
         d_table = posed.lowest + float(t[2]) - self._table_height
@@ -166,10 +186,11 @@ class HandClearance:
             shift = t - self._object_centre
             excess = np.abs(posed.centres_in_object + shift @ self._object_R) - self._object_half
             gap = np.linalg.norm(np.maximum(excess, 0.0), axis=1) + np.minimum(excess.max(axis=1), 0.0)
-            gap -= self._radii
-            d_obj = self._nearest(posed, t, gap, *self._object)
-        self._last = (key, (d_table, d_obj))
-        return d_table, d_obj
+            bounds = np.maximum(gap - self._radii, posed.lows + (float(t[2]) - self._object_top))
+            d_obj = self._nearest(posed, t, bounds, d_table if nearest_only else float("inf"), *self._object)
+        exact = not nearest_only or d_obj < d_table
+        self._last = (key, d_table, d_obj, exact)
+        return d_table, d_obj, exact
 
     def _posed(self, R: NDArray[np.float64]) -> _Posed:
         """The orientation-only terms of the hand at the rotation ``R`` (world from flange), cached by value."""
@@ -177,11 +198,11 @@ class HandClearance:
         posed = self._orientations.get(key)
         if posed is None:
             R = np.array(R, dtype=np.float64)
-            lowest = float(self._hand.lowest_points(_pose(R, np.zeros(3))).min())
+            lows = self._hand.lowest_points(_pose(R, np.zeros(3)))
             centres_in_object = self._centres @ R.T @ self._object_R
             rotations = np.matmul(R, self._hand.rotations)  # (n, 3, 3), each contiguous
             origins = self._hand.origins @ R.T
-            posed = _Posed(lowest, centres_in_object, rotations, origins)
+            posed = _Posed(lows, float(lows.min()), centres_in_object, rotations, origins)
             if len(self._orientations) >= _ORIENTATIONS_KEPT:
                 self._orientations.clear()
             self._orientations[key] = posed
@@ -192,10 +213,13 @@ class HandClearance:
         posed: _Posed,
         t: NDArray[np.float64],
         lower_bounds: NDArray[np.float64],
+        below: float,
         other: coal.CollisionGeometry,
         other_tf: coal.Transform3s,
     ) -> float:
-        best = float("inf")
+        """The smallest distance [m] of the hand's shapes to ``other`` if it is below ``below`` [m]; else some value
+        not below ``below`` (shapes whose ``lower_bounds`` [m] reach ``below`` are not asked)."""
+        best = below
         for k in np.argsort(lower_bounds).tolist():
             if lower_bounds[k] >= best:
                 break
@@ -219,16 +243,12 @@ class HandClearance:
         travel = 0.0
         T = np.array(T_start, dtype=float)
         for _ in range(max_steps):
-            d_table, d_obj = self.distances(T)
-            gap = min(d_table, d_obj) - margin
+            gap = self.nearest(T)[0] - margin
             if gap <= tolerance or travel >= max_travel:
                 break
             step = min(gap, max_travel - travel)
             travel += step
             T[:3, 3] = T_start[:3, 3] + travel * d
-        d_table, d_obj = self.distances(T)
-        if travel >= max_travel and min(d_table, d_obj) - margin > tolerance:
-            limited = "travel"
-        else:
-            limited = "table" if d_table <= d_obj else "object"
-        return Descent(T_world_hand=T, travel=travel, limited_by=limited, distance=min(d_table, d_obj))
+        distance, nearer = self.nearest(T)
+        limited = "travel" if travel >= max_travel and distance - margin > tolerance else nearer
+        return Descent(T_world_hand=T, travel=travel, limited_by=limited, distance=distance)

@@ -247,7 +247,7 @@ class Planner:
         direction = c.T[:3, 2]
         T_top = c.T.copy()
         T_top[:3, 3] -= direction * ((c.T[:3, 3] - center) @ direction + START_HEIGHT)
-        d0 = min(clearance.distances(T_top))
+        d0 = clearance.nearest(T_top)[0]
         if d0 < req.margin:
             c.reasons.append("collision:object")  # even the start above the object is blocked
             return
