@@ -75,10 +75,9 @@ class URParameters:
         outside are clamped. At the wrist singularity (sin q5 ~ 0) q6 is free and set to ``q6_default``.
         Scalar arithmetic throughout (a few microseconds; numpy's per-call cost would dominate on 4x4 matrices).
         """
-        T = (_RZ_PI @ target).tolist()  # Rz(pi) is its own inverse
-        R00, R01, R02, px = T[0]
-        R10, R11, R12, py = T[1]
-        R20, R21, R22, pz = T[2]
+        # Rz(pi) (its own inverse) negates the first two rows
+        (R00, R01, R02, px), (R10, R11, R12, py), (R20, R21, R22, pz) = target[:3].tolist()
+        R00, R01, R02, px, R10, R11, R12, py = -R00, -R01, -R02, -px, -R10, -R11, -R12, -py
         d1, d4, d5, d6 = self.d1, self.d4, self.d5, self.d6
         x05, y05 = px - d6 * R02, py - d6 * R12
         r = math.hypot(x05, y05)
@@ -94,27 +93,27 @@ class URParameters:
             if abs(c5) > 1.0 + _ARGUMENT_SLACK:
                 continue
             a5 = math.acos(max(-1.0, min(1.0, c5)))
+            sin_a5, c5 = math.sin(a5), math.cos(a5)  # of -a5: -sin, cos (odd and even, exactly)
             # columns of R turned into the shoulder's frame (frame 1 of the DH table)
             u0, u1, u2 = R00 * c1 + R10 * s1, R01 * c1 + R11 * s1, R02 * c1 + R12 * s1
-            for q5 in (a5, -a5):
-                s5, c5b = math.sin(q5), math.cos(q5)
-                if abs(s5) < _WRIST_SINGULAR:
-                    q6 = q6_default
-                else:
-                    q6 = math.atan2((-R01 * s1 + R11 * c1) / s5, (R00 * s1 - R10 * c1) / s5)
+            n6, m6 = -R01 * s1 + R11 * c1, R00 * s1 - R10 * c1  # sin q5 (sin q6, cos q6)
+            for q5, s5 in ((a5, sin_a5), (-a5, -sin_a5)):
+                q6 = q6_default if abs(s5) < _WRIST_SINGULAR else math.atan2(n6 / s5, m6 / s5)
                 s6, c6 = math.sin(q6), math.cos(q6)
                 # T14 = T01^-1 T T56^-1 T45^-1 (planar 2-link): its first column and its translation
-                t00 = c5b * (u0 * c6 - u1 * s6) - s5 * u2
-                t10 = c5b * (R20 * c6 - R21 * s6) - R22 * s5
+                t00 = c5 * (u0 * c6 - u1 * s6) - s5 * u2
+                t10 = c5 * (R20 * c6 - R21 * s6) - R22 * s5
                 x = px * c1 + py * s1 + d5 * (u0 * s6 + u1 * c6) - d6 * u2
                 y = pz - d1 - R22 * d6 + d5 * (R20 * s6 + R21 * c6)
                 c3 = (x * x + y * y - L2 * L2 - L3 * L3) / (2.0 * L2 * L3)
                 if abs(c3) > 1.0 + _ARGUMENT_SLACK:
                     continue
                 a3 = math.acos(max(-1.0, min(1.0, c3)))
+                sin_a3, c3 = math.sin(a3), math.cos(a3)
                 q234 = math.atan2(t10, t00)
-                for q3 in (a3, -a3):
-                    q2 = math.atan2(y, x) - math.atan2(L3 * math.sin(q3), L2 + L3 * math.cos(q3))
+                theta = math.atan2(y, x)
+                for q3, s3 in ((a3, sin_a3), (-a3, -sin_a3)):
+                    q2 = theta - math.atan2(L3 * s3, L2 + L3 * c3)
                     out.append((q1, q2, q3, q234 - q2 - q3, q5, q6))
         sol = np.array(out, dtype=np.float64).reshape(-1, 6)
         return np.asarray(np.remainder(sol + math.pi, 2.0 * math.pi) - math.pi, dtype=np.float64)

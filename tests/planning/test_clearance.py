@@ -52,6 +52,30 @@ def test_culled_distances_equal_brute_force(
     np.testing.assert_allclose(hc.distances(T), _brute_force(hc, T), atol=1e-9)
 
 
+@settings(max_examples=40, deadline=None)
+@given(
+    x=st.floats(0.4, 0.6), y=st.floats(-0.1, 0.1), z=st.floats(0.0, 0.5),
+    yaw=st.floats(-math.pi, math.pi), roll=st.floats(-0.2, 0.2), pitch=st.floats(-0.2, 0.2),
+)  # fmt: skip
+def test_nearest_is_the_smaller_brute_force_distance_and_names_it(
+    x: float, y: float, z: float, yaw: float, roll: float, pitch: float
+) -> None:
+    """The descent's query (coal asked only about shapes that could beat the table) gives min(table, object)
+    exactly and which of the two it is, also at poses where the object is the nearer."""
+    shapes = planning_model("pisa_iit_softhand").shapes
+    hc = HandClearance(shapes, builtin_object("cylinder").with_pose(0.5, 0.0, 0.7), 0.0)
+    T = np.eye(4)
+    T[:3, :3] = hand_rotation(yaw, roll, pitch)
+    T[:3, 3] = (x, y, z)
+    d_table, d_obj = _brute_force(hc, T)
+    d, which = hc.nearest(T)
+    assert d == pytest.approx(min(d_table, d_obj), abs=1e-9)
+    if abs(d_table - d_obj) > 1e-9:
+        assert which == ("table" if d_table < d_obj else "object")
+    # the full query after the nearest one at the same pose still gives both distances
+    np.testing.assert_allclose(hc.distances(T), (d_table, d_obj), atol=1e-9)
+
+
 def test_one_clearance_asked_at_many_orientations_in_turn_equals_brute_force() -> None:
     """The terms kept per orientation never leak into another: poses at ten orientations, asked in an
     interleaved order and again after translations, each equal brute force."""
