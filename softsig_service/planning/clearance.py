@@ -142,6 +142,8 @@ class HandClearance:
             self._object_half = 0.5 * (hi - lo)
             self._object_top = float(self._object_centre[2] + np.abs(self._object_R[2]) @ self._object_half)
         self._req = coal.DistanceRequest()
+        self._tf = coal.Transform3s()
+        self._res = coal.DistanceResult()
         self._last: tuple[bytes, float, float, bool] | None = None  # the last pose asked and its answer
         self._orientations: dict[bytes, _Posed] = {}
 
@@ -220,12 +222,14 @@ class HandClearance:
         """The smallest distance [m] of the hand's shapes to ``other`` if it is below ``below`` [m]; else some value
         not below ``below`` (shapes whose ``lower_bounds`` [m] reach ``below`` are not asked)."""
         best = below
+        tf, res = self._tf, self._res  # reused: set in full before each query
         for k in np.argsort(lower_bounds).tolist():
             if lower_bounds[k] >= best:
                 break
-            tf = coal.Transform3s(posed.rotations[k], posed.origins[k] + t)
-            result = coal.distance(self._shapes[k][0], tf, other, other_tf, self._req, coal.DistanceResult())
-            best = min(best, result)
+            tf.setRotation(posed.rotations[k])
+            tf.setTranslation(posed.origins[k] + t)
+            res.clear()
+            best = min(best, coal.distance(self._shapes[k][0], tf, other, other_tf, self._req, res))
         return best
 
     def descend(

@@ -30,10 +30,10 @@ parameters, so the compiled solver is reused for every object and pose.
 
 Every term of the cost is non-negative, and the untilted pose that aligns the CS, puts the placement point on
 the object's centre and keeps the depth at zero makes each of them zero. Where that closed-form pose satisfies
-the constraints it is therefore a global minimum: the compiled cost and constraints are evaluated there once
-(status ``closed_form``, 0 iterations) and no iteration is run. Otherwise (the table keeps the hand above the
-object's centre, or the shoulder's shell is in the way) the NLP is solved by SQP (qrqp) from that pose raised by
-0.1 mm, with Ipopt as the fallback.
+the constraints it is therefore a global minimum: the cost and constraints (the compiled NLP's expressions, in
+numpy) are evaluated there once (status ``closed_form``, 0 iterations) and no iteration is run. Otherwise (the
+table keeps the hand above the object's centre, or the shoulder's shell is in the way) the NLP is solved by SQP
+(qrqp) from that pose raised by 0.1 mm, with Ipopt as the fallback.
 """
 
 from __future__ import annotations
@@ -85,19 +85,26 @@ class WristPoseSolution:
     """Lowest open-hand reference point's height above the table [m]."""
     iterations: int
     solve_time: float
-    """[s] this branch's solve (the closed-form check evaluates both branches at once: its time counts for each)."""
+    """[s] this branch's solve (its closed-form check included)."""
 
 
 def hand_rotation(yaw: Any, roll: Any, pitch: Any, lib: Any = np) -> Any:
-    """``Rz(yaw) Rx(pi + roll) Ry(pitch)`` with numpy or casadi (``lib``)."""
-    cz, sz = lib.cos(yaw), lib.sin(yaw)
-    cr, sr = -lib.cos(roll), -lib.sin(roll)  # cos/sin of pi + roll
-    cp, sp = lib.cos(pitch), lib.sin(pitch)
+    """``Rz(yaw) Rx(pi + roll) Ry(pitch)`` with numpy (angles [rad] as floats; the product written out) or casadi
+    (``lib``; symbols)."""
     if lib is np:
-        Rz = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
-        Rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
-        Ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
-        return Rz @ Rx @ Ry
+        cz, sz = math.cos(yaw), math.sin(yaw)
+        cr, sr = -math.cos(roll), -math.sin(roll)  # cos/sin of pi + roll
+        cp, sp = math.cos(pitch), math.sin(pitch)
+        return np.array(
+            [
+                [cz * cp - sz * sr * sp, -sz * cr, cz * sp + sz * sr * cp],
+                [sz * cp + cz * sr * sp, cz * cr, sz * sp - cz * sr * cp],
+                [-cr * sp, sr, cr * cp],
+            ]
+        )
+    cz, sz = lib.cos(yaw), lib.sin(yaw)
+    cr, sr = -lib.cos(roll), -lib.sin(roll)
+    cp, sp = lib.cos(pitch), lib.sin(pitch)
     Rz = ca.vertcat(ca.horzcat(cz, -sz, 0), ca.horzcat(sz, cz, 0), ca.horzcat(0, 0, 1))
     Rx = ca.vertcat(ca.horzcat(1, 0, 0), ca.horzcat(0, cr, -sr), ca.horzcat(0, sr, cr))
     Ry = ca.vertcat(ca.horzcat(cp, 0, sp), ca.horzcat(0, 1, 0), ca.horzcat(-sp, 0, cp))
@@ -129,8 +136,7 @@ _RAISE = 1e-4
 
 
 def _solver(n_points: int, method: str = "sqpmethod") -> tuple[ca.Function, int]:
-    """This thread's compiled solver for ``n_points`` reference points (built on first use in each thread);
-    ``method="evaluate"`` gives the function ``(x, p) -> (f, g)`` of the same NLP, mapped over two columns.
+    """This thread's compiled solver for ``n_points`` reference points (built on first use in each thread).
 
     A CasADi solver is not re-entrant (its ``stats()`` are those of the last call made with it), so threads never
     share one: the service's threads plan in parallel without a lock around the NLP.
@@ -144,17 +150,12 @@ def _solver(n_points: int, method: str = "sqpmethod") -> tuple[ca.Function, int]
     return hit
 
 
-def _build_solver(n_points: int, method: str) -> tuple[ca.Function, int]:
-    """The wrist-pose NLP for ``n_points`` reference points, compiled with ``method`` (sqpmethod or ipopt), or its
-    cost and constraints as one function (``evaluate``)."""
-    w = ca.SX.sym("w", 6)  # x, y, z, yaw, roll, pitch
-    p = ca.SX.sym("p", 3 + 3 + 3 * n_points + 3 + 2 + 2)
-    u, pa = p[0:3], p[3:6]
-    P = ca.reshape(p[6 : 6 + 3 * n_points], 3, n_points)
-    k = 6 + 3 * n_points
-    c, a, table, margin = p[k : k + 3], p[k + 3 : k + 5], p[k + 5], p[k + 6]
+def _cost_and_constraints(w: Any, R: Any, u: Any, pa: Any, Pz: Any, c: Any, a: Any, table: Any, margin: Any) -> Any:
+    """The NLP's cost ``f`` and constraints ``g`` (n heights [m], then the squared reach [m^2]) at ``w`` = (x, y,
+    z, yaw, roll, pitch) with ``R`` = :func:`hand_rotation` of its angles and ``Pz`` the world z offsets [m] of the
+    reference points (``(R P)[2, :]``, one per point): one formula for CasADi symbols (the compiled NLP) and for
+    numpy floats (the closed-form check). Returns ``(f, heights, reach)``."""
     t = w[0:3]
-    R = hand_rotation(w[3], w[4], w[5], lib=ca)
     v = R @ u
     cross = v[0] * a[1] - v[1] * a[0]
     align = cross**2 / (v[0] ** 2 + v[1] ** 2 + 1e-9)
@@ -162,14 +163,24 @@ def _build_solver(n_points: int, method: str) -> tuple[ca.Function, int]:
     centring = ((anchor[0] - c[0]) ** 2 + (anchor[1] - c[1]) ** 2) / CENTRING_SCALE**2
     depth = (anchor[2] - c[2]) ** 2 / DEPTH_SCALE**2
     tilt = TILT_WEIGHT * (w[4] ** 2 + w[5] ** 2)
-    heights = (t[2] + (R @ P)[2, :]).T - table - margin  # >= 0
-    s = t - ca.DM(SHOULDER)
-    reach = ca.dot(s, s)
-    g = ca.vertcat(heights, reach)
+    heights = t[2] + Pz - table - margin  # >= 0
+    s = (t[0] - SHOULDER[0], t[1] - SHOULDER[1], t[2] - SHOULDER[2])
+    reach = s[0] ** 2 + s[1] ** 2 + s[2] ** 2
     f = align + 1e-3 * (centring + depth) + tilt
-    if method == "evaluate":  # both yaw branches in one call: columns of x and p
-        return ca.Function("wrist_pose_cost", [w, p], [f, g]).map(2), n_points
-    nlp = {"x": w, "p": p, "f": f, "g": g}
+    return f, heights, reach
+
+
+def _build_solver(n_points: int, method: str) -> tuple[ca.Function, int]:
+    """The wrist-pose NLP for ``n_points`` reference points, compiled with ``method`` (sqpmethod or ipopt)."""
+    w = ca.SX.sym("w", 6)  # x, y, z, yaw, roll, pitch
+    p = ca.SX.sym("p", 3 + 3 + 3 * n_points + 3 + 2 + 2)
+    u, pa = p[0:3], p[3:6]
+    P = ca.reshape(p[6 : 6 + 3 * n_points], 3, n_points)
+    k = 6 + 3 * n_points
+    c, a, table, margin = p[k : k + 3], p[k + 3 : k + 5], p[k + 5], p[k + 6]
+    R = hand_rotation(w[3], w[4], w[5], lib=ca)
+    f, heights, reach = _cost_and_constraints(w, R, u, pa, (R @ P)[2, :].T, c, a, table, margin)
+    nlp = {"x": w, "p": p, "f": f, "g": ca.vertcat(heights, reach)}
     opts = _SQP_OPTIONS if method == "sqpmethod" else _IPOPT_OPTIONS
     return ca.nlpsol("wrist_pose", method, nlp, opts), n_points
 
@@ -242,20 +253,16 @@ def solve_wrist_pose_unchecked(
     ubx = [ca.inf, ca.inf, ca.inf, ca.inf, MAX_TILT, MAX_TILT]
     lbg = [0.0] * n + [REACH[0] ** 2]
     ubg = [ca.inf] * n + [REACH[1] ** 2]
-    evaluate, _ = _solver(len(P), "evaluate")
     v0 = hand_rotation(0.0, 0.0, 0.0) @ u
-    closed = [_closed_form(v0, pa, P, c, a, table_height, margin, offset) for offset in (0.0, math.pi)]
-    t0 = time.perf_counter()
-    f_closed, g_closed = evaluate(np.column_stack([x for x, _ in closed]), np.column_stack([params, params]))
-    f_closed, g_closed = f_closed.full().ravel(), g_closed.full()
-    t_closed = time.perf_counter() - t0  # both branches' check (counted for each)
     out = []
-    for k, (x_closed, R_closed) in enumerate(closed):
+    for offset in (0.0, math.pi):
         t0 = time.perf_counter()
-        w, R, g = x_closed, R_closed, g_closed[:, k]
+        w, R = _closed_form(v0, pa, P, c, a, table_height, margin, offset)
+        f, heights, reach = _cost_and_constraints(w, R, u, pa, P @ R[2], c, a, table_height, margin)
+        g = np.append(heights, reach)
         stats: dict[str, Any] = {"success": True, "return_status": "closed_form", "iter_count": 0}
-        if not (f_closed[k] <= CLOSED_FORM_COST and _satisfies(g, n)):
-            x0 = x_closed.copy()
+        if not (f <= CLOSED_FORM_COST and _satisfies(g, n)):
+            x0 = w.copy()
             x0[2] += _RAISE
             sol = solver(x0=x0, p=params, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
             stats = solver.stats()
@@ -265,7 +272,7 @@ def solve_wrist_pose_unchecked(
                 stats = fallback.stats()
             w, g = sol["x"].full().ravel(), sol["g"].full().ravel()
             R = hand_rotation(w[3], w[4], w[5])
-        elapsed = t_closed + time.perf_counter() - t0
+        elapsed = time.perf_counter() - t0
         T = np.eye(4)
         T[:3, :3], T[:3, 3] = R, w[:3]
         v = R @ u
