@@ -191,6 +191,11 @@ class CollisionWorld:
         self._w = self._build(None, None)
 
     @property
+    def placed_object(self) -> tuple[coal.CollisionGeometry, FloatArray] | None:
+        """The object's coal geometry and pose ``T_world_shape`` [m] (read-only), or None without an object."""
+        return self._w.obj
+
+    @property
     def has_object(self) -> bool:
         """Whether an object is in the world."""
         return self._w.obj is not None

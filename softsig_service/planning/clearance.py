@@ -111,7 +111,9 @@ class HandClearance:
     """Distances [m] from the open hand's primitives to the table and one object (one per plan and thread).
 
     ``hand`` is the hand's :class:`HandGeometry` (built from ``hand_shapes`` when not given); the object's coal
-    geometry comes from :func:`~softsig_service.arm.shapes.object_geometry` (a mesh's is built once per content).
+    geometry is ``placed`` (the geometry of ``obj.primitive()`` and its pose ``T_world_primitive``, e.g. a
+    collision world's that holds the object already) or else comes from
+    :func:`~softsig_service.arm.shapes.object_geometry` (a mesh's is built once per content).
     """
 
     def __init__(
@@ -120,6 +122,7 @@ class HandClearance:
         obj: TableObject | None,
         table_height: float,
         hand: HandGeometry | None = None,
+        placed: tuple[coal.CollisionGeometry, NDArray[np.float64]] | None = None,
     ) -> None:
         self._hand = hand if hand is not None else HandGeometry(hand_shapes)
         self._shapes = self._hand.shapes
@@ -133,8 +136,8 @@ class HandClearance:
         self._object_top = 0.0
         """[m] world z of the highest point of the object's bounding box (no object: unused)."""
         if obj is not None:
-            geom = local_aabb(object_geometry(obj.primitive()))
-            T_obj = obj.primitive_pose
+            geom, T_obj = placed if placed is not None else (object_geometry(obj.primitive()), obj.primitive_pose)
+            local_aabb(geom)
             self._object = (geom, _tf(T_obj))
             lo, hi = np.asarray(geom.aabb_local.min_), np.asarray(geom.aabb_local.max_)
             self._object_R = T_obj[:3, :3]

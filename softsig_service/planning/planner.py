@@ -141,7 +141,7 @@ class Planner:
         t_ik = t_col = 0.0
         world = self._world(model, obj.table_height)
         world.set_object_unchecked(obj.primitive(), obj.primitive_pose)
-        clearance = HandClearance(model.shapes, obj, obj.table_height, self._hand(model))
+        clearance = HandClearance(model.shapes, obj, obj.table_height, self._hand(model), world.placed_object)
         for c in candidates:
             if c.reasons:
                 continue
