@@ -13,11 +13,13 @@ SQLite is set up on every new connection (connection events, not a one-off scrip
 Transactions are started by SQLAlchemy, not by the driver (pysqlite's implicit ``BEGIN`` is switched off, as the
 SQLAlchemy docs recommend): reads start a deferred ``BEGIN``; write sessions (:meth:`Registry.write`) start
 ``BEGIN IMMEDIATE``, taking SQLite's write lock up front so that two writers queue on the busy timeout rather than
-deadlock on a lock upgrade. On SQLite the writing threads of one process also take turns on a lock of the process
-(bounded by the same busy timeout, then :class:`~softsig_service.errors.ServiceBusy`): SQLite's busy handler
-waits by sleeping 1, 2, 5, 10, ... ms, which costs concurrent writers of one process tens of milliseconds. On
-PostgreSQL both are plain transactions; signature versions are allocated with a row-locking
-``UPDATE ... RETURNING`` there as here.
+deadlock on a lock upgrade. The plan path's lone statements (:meth:`Registry.read_core`,
+:meth:`Registry.write_core`) run without ``BEGIN``: SQLite wraps a statement outside a transaction in one of its
+own, which is atomic and holds no lock between statements, so no upgrade can deadlock either. On SQLite the
+writing threads of one process also take turns on a lock of the process (bounded by the same busy timeout, then
+:class:`~softsig_service.errors.ServiceBusy`): SQLite's busy handler waits by sleeping 1, 2, 5, 10, ... ms, which
+costs concurrent writers of one process tens of milliseconds. On PostgreSQL all are plain transactions;
+signature versions are allocated with a row-locking ``UPDATE ... RETURNING`` there as here.
 
 The schema is made and upgraded by Alembic migrations (:mod:`softsig_service.registry.migrate`), in a write
 transaction, whenever a :class:`Registry` is opened with ``create=True`` (the service's start).
@@ -41,6 +43,7 @@ from softsig_service.errors import ServiceBusy
 from softsig_service.registry import migrate
 
 _WRITE_OPTION = "softsig_write"
+_LONE_OPTION = "softsig_lone_statement"
 
 
 def _is_sqlite(url: str) -> bool:
@@ -79,8 +82,10 @@ def make_engine(url: str, *, busy_timeout: float = 10.0) -> Engine:
 
     @event.listens_for(engine, "begin")
     def _on_begin(conn: Any) -> None:
-        immediate = conn.get_execution_options().get(_WRITE_OPTION, False)
-        conn.exec_driver_sql("BEGIN IMMEDIATE" if immediate else "BEGIN")
+        options = conn.get_execution_options()
+        if options.get(_LONE_OPTION, False):
+            return  # one statement in autocommit mode: SQLite makes it a transaction of its own
+        conn.exec_driver_sql("BEGIN IMMEDIATE" if options.get(_WRITE_OPTION, False) else "BEGIN")
 
     return engine
 
@@ -103,6 +108,7 @@ class Registry:
         self._read = sessionmaker(self.engine, expire_on_commit=False)
         self._write_engine = self.engine.execution_options(**{_WRITE_OPTION: True})
         self._write = sessionmaker(self._write_engine, expire_on_commit=False)
+        self._lone_engine = self.engine.execution_options(**{_LONE_OPTION: True})
         if create:
             self.upgrade_schema()
 
@@ -144,17 +150,21 @@ class Registry:
 
     @contextmanager
     def read_core(self) -> Iterator[Connection]:
-        """A Core connection for reads, for the hot paths that need no ORM session (its transaction is rolled
-        back at the end)."""
-        with self.engine.connect() as conn:
+        """A Core connection for one read statement, for the hot paths that need no ORM session. On SQLite the
+        statement is its own transaction (no ``BEGIN``/``ROLLBACK`` round trips); elsewhere it runs in one,
+        rolled back at the end. Run one statement only: two would not see one snapshot on SQLite."""
+        with self._lone_engine.connect() as conn:
             yield conn
 
     @contextmanager
     def write_core(self) -> Iterator[Connection]:
-        """A Core connection in a write transaction (``BEGIN IMMEDIATE`` on SQLite, like :meth:`write`):
-        committed when the block ends, rolled back on an exception."""
-        with self._writer(), self._write_engine.begin() as conn:
+        """A Core connection for one write statement, in this process's turn to write (:meth:`write`'s). On
+        SQLite the statement is its own transaction (atomic, committed when it ends: no ``BEGIN IMMEDIATE`` and
+        ``COMMIT`` round trips); elsewhere it runs in one, committed when the block ends and rolled back on an
+        exception. Run one statement only: two would commit one by one on SQLite."""
+        with self._writer(), self._lone_engine.connect() as conn:
             yield conn
+            conn.commit()
 
     def ping(self) -> bool:
         """Whether the database answers a trivial query."""
