@@ -10,6 +10,7 @@ any distance by at most ``s``, so a step of (distance - margin) never passes thr
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -190,7 +191,8 @@ class HandClearance:
         if self._object is not None:
             shift = t - self._object_centre
             excess = np.abs(posed.centres_in_object + shift @ self._object_R) - self._object_half
-            gap = np.linalg.norm(np.maximum(excess, 0.0), axis=1) + np.minimum(excess.max(axis=1), 0.0)
+            outside = np.maximum(excess, 0.0)  # (norms written out: np.linalg.norm's checks cost more here)
+            gap = np.sqrt((outside * outside).sum(axis=1)) + np.minimum(excess.max(axis=1), 0.0)
             bounds = np.maximum(gap - self._radii, posed.lows + (float(t[2]) - self._object_top))
             d_obj = self._nearest(posed, t, bounds, d_table if nearest_only else float("inf"), *self._object)
         exact = not nearest_only or d_obj < d_table
@@ -246,7 +248,8 @@ class HandClearance:
         max_steps: int = 200,
     ) -> Descent:
         """Advance ``T_start`` along the unit ``direction`` (world) until ``margin`` [m] from table or object."""
-        d = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+        d = np.asarray(direction, dtype=float)
+        d = d / math.sqrt(float(d @ d))
         travel = 0.0
         T = np.array(T_start, dtype=float)
         for _ in range(max_steps):

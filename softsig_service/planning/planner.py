@@ -266,7 +266,8 @@ class Planner:
             return
         c.q = ik.q
         c.ik_residual = ik.position_residual
-        c.distance = float(np.linalg.norm(ik.q - q_now))
+        dq = ik.q - q_now
+        c.distance = math.sqrt(float(dq @ dq))
 
     def _approach_path(self, c: _Candidate, req: PlanRequest) -> list[NDArray[np.float64]] | None:
         """Joint configurations from the pre-grasp down the straight approach to the grasp (None: unreachable)."""

@@ -244,9 +244,9 @@ def solve_wrist_pose_unchecked(
     ``(N, 3)`` [m] (hand frame), ``c`` ``(3,)`` [m] and ``a`` (2 or 3 components with a horizontal part, world
     frame), all finite float arrays; ``table_height`` and ``margin`` [m] as there. Nothing is validated again."""
     a = np.asarray(a, dtype=float).ravel()[:2]
-    a = a / np.linalg.norm(a)
-    u = u / np.linalg.norm(u)
-    horizontal = float(np.linalg.norm(u[:2]))
+    a = a / math.sqrt(float(a @ a))
+    u = u / math.sqrt(float(u @ u))
+    horizontal = math.hypot(u[0], u[1])
     solver, n = _solver(len(P))
     params = np.concatenate([u, pa, P.reshape(-1), c, a, [table_height, margin]])
     lbx = [-ca.inf, -ca.inf, -ca.inf, -ca.inf, -MAX_TILT, -MAX_TILT]
@@ -276,11 +276,11 @@ def solve_wrist_pose_unchecked(
         T = np.eye(4)
         T[:3, :3], T[:3, 3] = R, w[:3]
         v = R @ u
-        err = math.asin(min(1.0, abs(v[0] * a[1] - v[1] * a[0]) / max(np.linalg.norm(v[:2]), 1e-12)))
+        err = math.asin(min(1.0, abs(v[0] * a[1] - v[1] * a[0]) / max(math.hypot(v[0], v[1]), 1e-12)))
         anchor = w[:3] + R @ pa
         feasible = _satisfies(g, n, slack=1e-6)
         status = str(stats.get("return_status", ""))
-        centring = float(np.linalg.norm(anchor[:2] - c[:2]))
+        centring = math.hypot(anchor[0] - c[0], anchor[1] - c[1])
         feasible = feasible and centring <= CENTRING_TOLERANCE
         ok = bool(stats.get("success", False)) and feasible and horizontal >= MIN_HORIZONTAL_CS
         if horizontal < MIN_HORIZONTAL_CS:
