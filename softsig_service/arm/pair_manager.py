@@ -26,6 +26,8 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from softsig_service.arm.shapes import local_aabb
+
 FloatArray = NDArray[np.float64]
 
 _Manager = pin.BroadPhaseManager_NaiveCollisionManager
@@ -52,8 +54,9 @@ class PairManager:
         active: the pair indices to check.
         category_of: each active pair's margin category (``"table"``, ``"object"`` or ``"self"``).
 
-    Raises ``ValueError`` when a geometry of an active pair has an empty bounding box (coal's tree leaves such
-    a geometry out, so its pairs would never be asked); a world falls back to asking pairs one by one then.
+    Raises ``ValueError`` when a geometry of an active pair has an empty bounding box (Pinocchio's manager
+    silently leaves such a geometry out, so its pairs would never be asked); a world asks its pairs one by one
+    then.
     """
 
     def __init__(
@@ -68,12 +71,12 @@ class PairManager:
         for k in self._active:
             self.gd.activateCollisionPair(k)
         self._category = [category_of[k] for k in self._active]
-        self._manager = _Manager(model, gm, self.gd)
-        status = list(self._manager.getCollisionObjectStatus())
         for k in self._active:
             pair = gm.collisionPairs[k]
-            if not (status[pair.first] and status[pair.second]):
-                raise ValueError(f"pair {k} has a geometry without a bounding box")
+            for index in (pair.first, pair.second):
+                if not local_aabb(gm.geometryObjects[index].geometry).aabb_local.volume() > 0.0:
+                    raise ValueError(f"geometry {index} of pair {k} has an empty bounding box")
+        self._manager = _Manager(model, gm, self.gd)
         self._margins: dict[str, float] = {}
 
     def set_margins(self, margins: Mapping[str, float]) -> None:

@@ -76,7 +76,8 @@ class URParameters:
         Scalar arithmetic throughout (a few microseconds; numpy's per-call cost would dominate on 4x4 matrices).
         """
         # Rz(pi) (its own inverse) negates the first two rows
-        (R00, R01, R02, px), (R10, R11, R12, py), (R20, R21, R22, pz) = target[:3].tolist()
+        rows = np.asarray(target, dtype=np.float64)[:3].tolist()
+        (R00, R01, R02, px), (R10, R11, R12, py), (R20, R21, R22, pz) = rows
         R00, R01, R02, px, R10, R11, R12, py = -R00, -R01, -R02, -px, -R10, -R11, -R12, -py
         d1, d4, d5, d6 = self.d1, self.d4, self.d5, self.d6
         x05, y05 = px - d6 * R02, py - d6 * R12

@@ -161,7 +161,8 @@ class Registry:
         """A Core connection for one write statement, in this process's turn to write (:meth:`write`'s). On
         SQLite the statement is its own transaction (atomic, committed when it ends: no ``BEGIN IMMEDIATE`` and
         ``COMMIT`` round trips); elsewhere it runs in one, committed when the block ends and rolled back on an
-        exception. Run one statement only: two would commit one by one on SQLite."""
+        exception. Run one statement only, and nothing that may fail after it: on SQLite two statements commit
+        one by one, and an exception after the statement does not undo it."""
         with self._writer(), self._lone_engine.connect() as conn:
             yield conn
             conn.commit()

@@ -120,3 +120,34 @@ def test_verdict_only_checks_agree_with_coal_on_every_pair(ur5: UR5, hand: str, 
         free += not expected
     assert collided > 40 and free > 40
     assert world._w.managers[(True, True, True, ignore_hand, ignore_hand)] is not None  # the manager answered
+
+
+def test_verdict_only_checks_follow_moves_shapes_and_margins(ur5: UR5) -> None:
+    """The broad-phase manager answers like the pair-by-pair check when the object moves, when the world switches
+    to another shape and back, without an object, with margins that change from call to call, and over a whole
+    path (``stop_at_first=False``: every colliding waypoint's pairs)."""
+    world = CollisionWorld(ur5, HAND, table_height=0.0)
+    shapes = [ObjectShape("box", (0.03, 0.05, 0.04)), ObjectShape("sphere", (0.05,)), None]
+    rng = np.random.default_rng(13)
+    collided = 0
+    for k in range(90):
+        shape = shapes[k % 3]
+        centre = np.array([rng.uniform(0.35, 0.55), rng.uniform(-0.15, 0.15), 0.05])
+        if shape is None:
+            world.clear_object()
+        else:
+            world.set_object(shape, make_transform(rot_z(rng.uniform(-1.0, 1.0)), centre))
+        margins = {"margin": float(rng.uniform(0.0, 0.03)), "table_margin": float(rng.uniform(0.0, 0.01))}
+        qs = []
+        offset = np.array([rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1), 0.0])
+        for z in np.linspace(0.35, rng.uniform(0.05, 0.3), 4):
+            target = make_transform(rot_z(rng.uniform(-math.pi, math.pi)) @ rot_x(math.pi), centre + offset + [0, 0, z])
+            qs.append(ur5.solve_ik(target, np.array([0.0, -1.2, 1.5, -1.9, -1.57, 0.0])).q)
+        report = world.check_waypoints(qs, distances=False, stop_at_first=False, **margins)
+        expected = [world.check(q, distances=False, **margins) for q in qs]
+        hit = [i for i, r in enumerate(expected) if r.in_collision]
+        assert report.in_collision == bool(hit) and report.waypoint == (hit[0] if hit else None), k
+        assert sorted(report.pairs) == sorted({p for r in expected for p in r.pairs}), k
+        collided += bool(hit)
+    assert 10 < collided < 80  # both verdicts exercised
+    assert all(m is not None for m in world._w.managers.values()) and world._w.managers

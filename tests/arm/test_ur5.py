@@ -250,3 +250,27 @@ def test_closed_form_at_the_wrist_singularity(ur5: UR5) -> None:
     for b in branches:
         dp, dr = UR5.pose_error(ur5.fk(b), target)
         assert dp < 1e-9 and dr < 1e-9
+
+
+def test_the_exact_nearest_branch_returns_what_the_seed_loop_returns(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The shortcut (the nearest closed-form branch accepted after one forward kinematics) answers exactly as the
+    seed loop does without it: same q, residuals, counts and solutions, with and without a reference."""
+    import softsig_service.arm.ur5 as ur5_module
+
+    ur5 = load_ur5()
+    rng = np.random.default_rng(21)
+    cases = []
+    for k in range(200):
+        T = ur5.fk(ur5.random_configuration(rng))
+        ref = None if k % 3 == 0 else ur5.random_configuration(rng)
+        cases.append((T, ref))
+    fast = [ur5.solve_ik_unchecked(T, ref, seeds=0 if k % 2 else 8) for k, (T, ref) in enumerate(cases)]
+    monkeypatch.setattr(ur5_module, "settled", lambda *args: None)
+    slow = [ur5.solve_ik_unchecked(T, ref, seeds=0 if k % 2 else 8) for k, (T, ref) in enumerate(cases)]
+    for a, b in zip(fast, slow, strict=True):
+        assert (a.success, a.iterations, a.seeds_tried, a.reason) == (b.success, b.iterations, b.seeds_tried, b.reason)
+        assert np.array_equal(a.q, b.q)
+        assert (a.position_residual, a.rotation_residual) == (b.position_residual, b.rotation_residual)
+        assert len(a.solutions) == len(b.solutions)
+        assert all(np.array_equal(x, y) for x, y in zip(a.solutions, b.solutions, strict=True))
+    assert sum(r.success for r in fast) == len(cases)  # every target came from a configuration

@@ -53,3 +53,35 @@ def test_a_flat_object_takes_the_sqp_and_keeps_the_hand_above_the_table() -> Non
         assert sol.success and sol.status != "closed_form" and sol.iterations >= 1
         assert sol.clearance >= 0.005 - 1e-6  # the lowest reference point keeps the margin above the table
         assert sol.alignment_error <= 1e-6
+
+
+def test_the_closed_form_check_and_the_compiled_nlp_share_one_cost_and_constraints() -> None:
+    """The closed-form check evaluates the NLP's cost and constraints in numpy; at random poses and parameters
+    (tilted ones included) they equal CasADi's evaluation of the same expressions the solver is built from."""
+    import casadi as ca
+
+    n = 5
+    w = ca.SX.sym("w", 6)
+    p = ca.SX.sym("p", 3 + 3 + 3 * n + 3 + 2 + 2)
+    P_sym = ca.reshape(p[6 : 6 + 3 * n], 3, n)
+    k = 6 + 3 * n
+    R_sym = wp.hand_rotation(w[3], w[4], w[5], lib=ca)
+    f, heights, reach = wp._cost_and_constraints(
+        w, R_sym, p[0:3], p[3:6], (R_sym @ P_sym)[2, :].T, p[k : k + 3], p[k + 3 : k + 5], p[k + 5], p[k + 6]
+    )
+    compiled = ca.Function("f_g", [w, p], [f, ca.vertcat(heights, reach)])
+    rng = np.random.default_rng(4)
+    for _ in range(50):
+        x = np.concatenate([rng.uniform(-0.5, 0.5, 3), rng.uniform(-math.pi, math.pi, 1), rng.uniform(-0.2, 0.2, 2)])
+        u = rng.normal(size=3)
+        u /= np.linalg.norm(u)
+        pa, P, c = rng.uniform(-0.1, 0.1, 3), rng.uniform(-0.1, 0.1, (n, 3)), rng.uniform(-0.3, 0.3, 3)
+        a = rng.normal(size=2)
+        a /= np.linalg.norm(a)
+        table, margin = rng.uniform(-0.1, 0.1), 0.005
+        params = np.concatenate([u, pa, P.reshape(-1), c, a, [table, margin]])
+        f_ca, g_ca = compiled(x, params)
+        R = wp.hand_rotation(x[3], x[4], x[5])
+        f_np, h_np, r_np = wp._cost_and_constraints(x, R, u, pa, P @ R[2], c, a, table, margin)
+        np.testing.assert_allclose(float(f_np), float(f_ca), rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(np.append(h_np, r_np), g_ca.full().ravel(), rtol=1e-12, atol=1e-15)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 from db_backends import Backend
-from sqlalchemy import text
+from sqlalchemy import event, text
 
 from softsig_service import registry as repo
 from softsig_service.errors import Conflict, HandNotFound, NotFound, PreconditionFailed, ServiceBusy
@@ -325,6 +325,32 @@ def test_a_plans_hand_reference_and_stored_plan_read_back(reg: Registry) -> None
     stored = repo.get_plan(reg, plan.id)
     assert stored == plan and stored.request == {"a": [1, 2]} and stored.result == {"b": {"c": 0.5}}
     assert stored.created_at.utcoffset() is not None and not stored.success
+
+
+def test_the_plan_paths_lone_statements_are_committed_at_once(reg: Registry, database_url: str) -> None:
+    """``hand_ref`` and ``add_plan`` send their statement alone on SQLite (no BEGIN: SQLite makes a lone statement
+    atomic), and the plan is committed when ``add_plan`` returns, on SQLite and on PostgreSQL: another registry on
+    the same database reads it back at once."""
+    _hand(reg, "h1")
+    sent: list[str] = []
+
+    def record(_conn: object, _cursor: object, statement: str, *_args: object) -> None:
+        sent.append(statement.split()[0].upper())
+
+    event.listen(reg.engine, "before_cursor_execute", record)
+    try:
+        ref = repo.hand_ref(reg, "h1")
+        plan = repo.add_plan(reg, hand="h1", strategy="C", success=True, request={}, result={"q": [0.1]})
+    finally:
+        event.remove(reg.engine, "before_cursor_execute", record)
+    if reg.is_sqlite:
+        assert sent == ["SELECT", "INSERT"]
+    assert ref.name == "h1"
+    other = Registry(database_url, create=False)
+    try:
+        assert repo.get_plan(other, plan.id) == plan
+    finally:
+        other.dispose()
 
 
 def test_sqlite_writers_of_one_process_queue_and_time_out_as_busy(tmp_path: Path) -> None:
