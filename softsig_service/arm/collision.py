@@ -52,7 +52,6 @@ from softsig_service.arm.arm_geometry import arm_geometry
 from softsig_service.arm.collision_model import PairInfo, WorldModel, build_world_model
 from softsig_service.arm.collision_report import (
     CATEGORY_ORDER,
-    OBJECT_NAME,
     REASON_OF,
     CollisionReport,
     check_finite,
@@ -181,10 +180,9 @@ class CollisionWorld:
         # same shape, new pose: move the existing geometry instead of rebuilding the world
         geo = w.obj[0]
         w.obj = (geo, T)
-        oid = w.gm.getGeometryId(OBJECT_NAME)
-        placement = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
-        w.gm.geometryObjects[oid].placement = placement
-        w.broad.move(oid, placement, geo)
+        assert w.object_id is not None
+        w.gm.geometryObjects[w.object_id].placement = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
+        w.broad_stale = True  # the NumPy broad phase follows when next asked (_may_collide)
 
     def clear_object(self) -> None:
         """Remove the object from the world."""
@@ -314,6 +312,10 @@ class CollisionWorld:
         """Broad phase at every row of ``Q`` ``(W, 6)`` [rad]: ``(W, P)``, which selected pairs may collide."""
         _, idx = selection
         by_code = np.array([margins["table"], margins["object"], margins["self"]])
+        w = self._w
+        if w.broad_stale and w.obj is not None and w.object_id is not None:
+            w.broad.move(w.object_id, w.gm.geometryObjects[w.object_id].placement, w.obj[0])
+            w.broad_stale = False
         R, t = self._w.broad.joint_placements(self._model, self._data, Q)
         return self._w.broad.candidates(
             R, t, self._w.pair_a[idx], self._w.pair_b[idx], by_code[self._w.pair_category[idx]]

@@ -48,7 +48,8 @@ class PairInfo:
 @dataclass
 class WorldModel:
     """Pinocchio geometry model and data of a world, its pairs and broad phase, and the object it was built for
-    (``obj``: coal geometry and pose ``T_world_shape``; ``key``: the shape's identity). ``selections`` caches
+    (``obj``: coal geometry and pose ``T_world_shape``; ``key``: the shape's identity; ``object_id``: its index in
+    ``gm``; ``broad_stale``: the object moved since the broad phase's volumes were set). ``selections`` caches
     the pairs chosen by a set of flags, ``managers`` their :class:`PairManager` (None: a geometry the manager
     cannot hold); ``applied_margins`` the margins last written into ``gd``'s requests."""
 
@@ -65,6 +66,8 @@ class WorldModel:
     selections: dict[tuple[bool, bool, bool, bool, bool], tuple[list[PairInfo], NDArray[np.intp]]] = field(
         default_factory=dict
     )
+    object_id: int | None = None
+    broad_stale: bool = False
     managers: dict[tuple[bool, bool, bool, bool, bool], PairManager | None] = field(default_factory=dict)
     applied_margins: dict[str, float] = field(default_factory=dict)
 
@@ -143,4 +146,5 @@ def build_world_model(
         names=names,
         obj=obj,
         key=key,
+        object_id=object_id,
     )
