@@ -316,10 +316,8 @@ class CollisionWorld:
         if w.broad_stale and w.obj is not None and w.object_id is not None:
             w.broad.move(w.object_id, w.gm.geometryObjects[w.object_id].placement, w.obj[0])
             w.broad_stale = False
-        R, t = self._w.broad.joint_placements(self._model, self._data, Q)
-        return self._w.broad.candidates(
-            R, t, self._w.pair_a[idx], self._w.pair_b[idx], by_code[self._w.pair_category[idx]]
-        )
+        R, t = w.broad.joint_placements(self._model, self._data, Q)
+        return w.broad.candidates(R, t, w.pair_a[idx], w.pair_b[idx], by_code[w.pair_category[idx]])
 
     def check_waypoints(self, qs: Sequence[ArrayLike] | ArrayLike, **options: Unpack[PathOptions]) -> CollisionReport:
         """Check a sequence of configurations (e.g. IK solutions along a straight approach).

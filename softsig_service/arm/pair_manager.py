@@ -63,7 +63,6 @@ class PairManager:
         self, model: pin.Model, gm: pin.GeometryModel, active: Iterable[int], category_of: Mapping[int, str]
     ) -> None:
         self._model = model
-        self._gm = gm
         self.gd = pin.GeometryData(gm)
         configure_requests(self.gd)
         self.gd.deactivateAllCollisionPairs()

@@ -36,6 +36,20 @@ def _brute_force(hc: HandClearance, T: np.ndarray) -> tuple[float, float]:
     return dt, do
 
 
+def _clearance(hand: str) -> HandClearance:
+    """The clearance of ``hand``'s open primitives to the table (z = 0) and the built-in cylinder of
+    :func:`_brute_force`."""
+    return HandClearance(planning_model(hand).shapes, builtin_object("cylinder").with_pose(0.5, 0.0, 0.7), 0.0)
+
+
+def _flange_pose(x: float, y: float, z: float, yaw: float, roll: float, pitch: float) -> np.ndarray:
+    """The flange pose at (x, y, z) [m] with the hand turned by (yaw, roll, pitch) [rad] from a top grasp."""
+    T = np.eye(4)
+    T[:3, :3] = hand_rotation(yaw, roll, pitch)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     x=st.floats(0.35, 0.65), y=st.floats(-0.15, 0.15), z=st.floats(0.05, 0.4),
@@ -44,11 +58,8 @@ def _brute_force(hc: HandClearance, T: np.ndarray) -> tuple[float, float]:
 def test_culled_distances_equal_brute_force(
     x: float, y: float, z: float, yaw: float, roll: float, pitch: float
 ) -> None:
-    shapes = planning_model("rbo_hand2").shapes
-    hc = HandClearance(shapes, builtin_object("cylinder").with_pose(0.5, 0.0, 0.7), 0.0)
-    T = np.eye(4)
-    T[:3, :3] = hand_rotation(yaw, roll, pitch)
-    T[:3, 3] = (x, y, z)
+    hc = _clearance("rbo_hand2")
+    T = _flange_pose(x, y, z, yaw, roll, pitch)
     np.testing.assert_allclose(hc.distances(T), _brute_force(hc, T), atol=1e-9)
 
 
@@ -62,11 +73,8 @@ def test_nearest_is_the_smaller_brute_force_distance_and_names_it(
 ) -> None:
     """The descent's query (coal asked only about shapes that could beat the table) gives min(table, object)
     exactly and which of the two it is, also at poses where the object is the nearer."""
-    shapes = planning_model("pisa_iit_softhand").shapes
-    hc = HandClearance(shapes, builtin_object("cylinder").with_pose(0.5, 0.0, 0.7), 0.0)
-    T = np.eye(4)
-    T[:3, :3] = hand_rotation(yaw, roll, pitch)
-    T[:3, 3] = (x, y, z)
+    hc = _clearance("pisa_iit_softhand")
+    T = _flange_pose(x, y, z, yaw, roll, pitch)
     d_table, d_obj = _brute_force(hc, T)
     d, which = hc.nearest(T)
     assert d == pytest.approx(min(d_table, d_obj), abs=1e-9)
@@ -79,8 +87,7 @@ def test_nearest_is_the_smaller_brute_force_distance_and_names_it(
 def test_one_clearance_asked_at_many_orientations_in_turn_equals_brute_force() -> None:
     """The terms kept per orientation never leak into another: poses at ten orientations, asked in an
     interleaved order and again after translations, each equal brute force."""
-    shapes = planning_model("pisa_iit_softhand").shapes
-    hc = HandClearance(shapes, builtin_object("cylinder").with_pose(0.5, 0.0, 0.7), 0.0)
+    hc = _clearance("pisa_iit_softhand")
     rng = np.random.default_rng(3)
     rotations = [hand_rotation(*rng.uniform([-math.pi, -0.2, -0.2], [math.pi, 0.2, 0.2])) for _ in range(10)]
     for k in [0, 1, 0, 2, 3, 1, 4, 5, 6, 7, 8, 9, 0, 9, 5] * 2:
