@@ -2,8 +2,9 @@
 
 Run: .venv/bin/python benchmarks/bench_api.py [--requests 400] [--concurrency 8] [--seconds 60] [--strategy C]
      [--workers N]   (service processes, default: every CPU)
-     .venv/bin/python benchmarks/bench_api.py --per-request --workers 1 --requests 300 --strategy S
-                     (server CPU per request, one at a time, beside a cheap route and a rejected body)
+     .venv/bin/python benchmarks/bench_api.py --per-request --workers 1 --requests 300 --strategy S [--client stdlib]
+                     (server CPU per request, one at a time, beside a cheap route, a rejected body and a stored
+                     plan read back)
      .venv/bin/python benchmarks/bench_api.py --baseline 5354fe9 --rounds 3 --client stdlib
                      (also the service of an earlier revision, exported with ``git archive`` and served from its
                      own folder; A B A B ... in turn, a fresh data folder per run)
@@ -132,6 +133,8 @@ class Poster(Protocol):
 
     def post(self, path: str, body: dict[str, Any], encoded: bytes) -> tuple[int, bytes]: ...
 
+    def get(self, path: str) -> tuple[int, bytes]: ...
+
     def close(self) -> None: ...
 
 
@@ -143,6 +146,10 @@ class HttpxPoster:
 
     def post(self, path: str, body: dict[str, Any], encoded: bytes) -> tuple[int, bytes]:
         r = self.client.post(path, json=body)
+        return r.status_code, r.content
+
+    def get(self, path: str) -> tuple[int, bytes]:
+        r = self.client.get(path)
         return r.status_code, r.content
 
     def close(self) -> None:
@@ -160,6 +167,11 @@ class StdlibPoster:
 
     def post(self, path: str, body: dict[str, Any], encoded: bytes) -> tuple[int, bytes]:
         self.conn.request("POST", path, body=encoded, headers=self.headers)
+        r = self.conn.getresponse()
+        return r.status, r.read()
+
+    def get(self, path: str) -> tuple[int, bytes]:
+        self.conn.request("GET", path, headers=self.headers)
         r = self.conn.getresponse()
         return r.status, r.read()
 
@@ -255,19 +267,26 @@ def run(
     }
 
 
-def per_request(url: str, server_pid: int, n: int, strategy: str) -> None:
+def per_request(url: str, server_pid: int, n: int, strategy: str, client: str = "httpx") -> None:
     """Print wall time and server CPU [ms] per request, one request at a time, for a cheap route, a request that
-    fails validation, and plans not stored and stored: what the HTTP stack costs beside the planner."""
+    fails validation, a stored plan read back (a plan's response without planning), and plans not stored and
+    stored: what the HTTP stack costs beside the planner."""
     rng = random.Random(11)
+    poster: Poster = CLIENTS[client](url)
 
-    with httpx.Client(base_url=url, headers={"X-API-Key": KEY}, timeout=30) as client:
+    def post(body: dict[str, Any]) -> tuple[int, bytes]:
+        return poster.post("/v1/plans", body, json.dumps(body).encode())
+
+    try:
+        stored = json.loads(post(plan_body(rng, strategy, True))[1])["links"]["self"]
         cases = (
-            ("GET /healthz", lambda: client.get("/healthz")),
-            ("POST /v1/plans, invalid body", lambda: client.post("/v1/plans", json={"hand": "x"})),
-            ("POST /v1/plans, not stored", lambda: client.post("/v1/plans", json=plan_body(rng, strategy, False))),
-            ("POST /v1/plans, stored", lambda: client.post("/v1/plans", json=plan_body(rng, strategy, True))),
+            ("GET /healthz", lambda: poster.get("/healthz")),
+            ("POST /v1/plans, invalid body", lambda: post({"hand": "x"})),
+            ("GET /v1/plans/{id}", lambda: poster.get(stored)),
+            ("POST /v1/plans, not stored", lambda: post(plan_body(rng, strategy, False))),
+            ("POST /v1/plans, stored", lambda: post(plan_body(rng, strategy, True))),
         )
-        print(f"one request at a time, {n} each, strategy {strategy}")
+        print(f"one request at a time, {n} each, strategy {strategy}, client {client}")
         print(f"{'request':30s} {'wall ms':>8} {'server CPU ms':>13} {'client CPU ms':>13}")
         for name, call in cases:
             cpu_server, cpu_client, t0 = process_cpu_seconds(server_pid), time.process_time(), time.perf_counter()
@@ -276,6 +295,8 @@ def per_request(url: str, server_pid: int, n: int, strategy: str) -> None:
             wall = time.perf_counter() - t0
             cpu_server, cpu_client = process_cpu_seconds(server_pid) - cpu_server, time.process_time() - cpu_client
             print(f"{name:30s} {wall / n * 1e3:8.2f} {cpu_server / n * 1e3:13.2f} {cpu_client / n * 1e3:13.2f}")
+    finally:
+        poster.close()
 
 
 def print_row(side: str, r: dict[str, Any]) -> None:
@@ -326,7 +347,7 @@ def main() -> None:
             tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp,
             serving(Path(tmp), args.workers, None, args.strategy) as (url, pid),
         ):
-            per_request(url, pid, args.requests, args.strategy)
+            per_request(url, pid, args.requests, args.strategy, args.client)
         return
     print(f"POST /v1/plans, strategy {args.strategy}, pisa_iit_softhand, box at random poses; {os.cpu_count()} CPUs, "
           f"{args.workers} service processes, client {args.client}")  # fmt: skip
