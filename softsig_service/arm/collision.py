@@ -49,7 +49,7 @@ from numpy.typing import ArrayLike, NDArray
 from typing_extensions import Unpack
 
 from softsig_service.arm.arm_geometry import arm_geometry
-from softsig_service.arm.collision_model import PairInfo, WorldModel, build_world_model
+from softsig_service.arm.collision_model import PairInfo, SelectionKey, WorldModel, build_world_model
 from softsig_service.arm.collision_report import (
     CATEGORY_ORDER,
     REASON_OF,
@@ -70,8 +70,6 @@ from softsig_service.errors import InvalidInput
 from softsig_service.geometry.transforms import check_transform
 
 FloatArray = NDArray[np.float64]
-SelectionKey = tuple[bool, bool, bool, bool, bool]
-"""Flags that select pairs: (check_table, check_object, check_self, ignore_hand_object, ignore_hand_table)."""
 
 
 _BUILT_WORLDS = 8

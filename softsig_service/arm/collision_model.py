@@ -29,6 +29,8 @@ from softsig_service.arm.shapes import HandShape
 from softsig_service.arm.ur5 import UR5
 
 FloatArray = NDArray[np.float64]
+SelectionKey = tuple[bool, bool, bool, bool, bool]
+"""Flags that select pairs: (check_table, check_object, check_self, ignore_hand_object, ignore_hand_table)."""
 
 CATEGORY_CODE: dict[str, int] = {"table": 0, "object": 1, "self": 2}
 """Index of each pair category in the margins array of the broad phase."""
@@ -63,12 +65,10 @@ class WorldModel:
     names: list[str]
     obj: tuple[coal.CollisionGeometry, FloatArray] | None
     key: tuple[object, ...] | None
-    selections: dict[tuple[bool, bool, bool, bool, bool], tuple[list[PairInfo], NDArray[np.intp]]] = field(
-        default_factory=dict
-    )
+    selections: dict[SelectionKey, tuple[list[PairInfo], NDArray[np.intp]]] = field(default_factory=dict)
     object_id: int | None = None
     broad_stale: bool = False
-    managers: dict[tuple[bool, bool, bool, bool, bool], PairManager | None] = field(default_factory=dict)
+    managers: dict[SelectionKey, PairManager | None] = field(default_factory=dict)
     applied_margins: dict[str, float] = field(default_factory=dict)
 
 
