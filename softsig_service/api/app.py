@@ -70,11 +70,12 @@ def _startup(settings: Settings, registry: Registry) -> Any:
     added = [n for n, what in done.items() if what == "added"]
     if added:
         log.info("registered built-in hands: %s", ", ".join(added))
-    planner = Planner()
+    planner = Planner(settings)
     if settings.warm_planner:
         for record in repo.list_hands(registry):
             if record.builtin:
-                planning_model(record.manifest_path)
+                ref = repo.hand_ref(registry, record.name)
+                planning_model(record.manifest_path, settings=settings, revision=ref.token)
     return planner
 
 

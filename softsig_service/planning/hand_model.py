@@ -31,9 +31,11 @@ C: the CS anchor)."""
 DEFAULT_PLACEMENT: Placement = "open_centre"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class HandPlanningModel:
-    """What the planner needs of a hand, computed once: its CS, open reference points and collision shapes."""
+    """What the planner needs of a hand, computed once: its CS, open reference points and collision shapes.
+
+    Compared and hashed by identity: the planner keys the geometry it derives from a model by the model itself."""
 
     name: str
     signature: ClosureSignature
@@ -60,17 +62,23 @@ class HandPlanningModel:
 CACHE_SIZE = 32
 """Planning models kept per process (least recently used first out)."""
 
-_CacheKey = tuple[str, str, "Settings | None", str]
+_CacheKey = tuple[str, str, "Settings | None", str, str]
+"""(hand reference, CS method, settings, criterion, revision): what a model is built from."""
 _cache: OrderedDict[_CacheKey, HandPlanningModel] = OrderedDict()
 _cache_lock = threading.Lock()
 
 
 def cached_planning_model(
-    hand_ref: str, method: str = "ellipsoid", settings: Settings | None = None, criterion: Criterion = "absolute"
+    hand_ref: str,
+    method: str = "ellipsoid",
+    settings: Settings | None = None,
+    criterion: Criterion = "absolute",
+    revision: str = "",
 ) -> HandPlanningModel | None:
     """The planning model of ``hand_ref`` if this process has built or been given it, else None (nothing is
-    simulated)."""
-    key = (hand_ref, method, settings, criterion)
+    simulated). ``revision`` names the hand's content (the registry's ETag of the hand; "" for a folder as it is
+    on disk): a replaced hand has another revision, so its old model is never answered for it."""
+    key = (hand_ref, method, settings, criterion, revision)
     with _cache_lock:
         model = _cache.get(key)
         if model is not None:
@@ -84,25 +92,31 @@ def remember_planning_model(
     method: str = "ellipsoid",
     settings: Settings | None = None,
     criterion: Criterion = "absolute",
+    revision: str = "",
 ) -> None:
     """Keep ``model`` (built elsewhere, e.g. in a worker process by :func:`build_planning_model`) for
     :func:`planning_model` with the same arguments."""
+    key = (hand_ref, method, settings, criterion, revision)
     with _cache_lock:
-        _cache[(hand_ref, method, settings, criterion)] = model
-        _cache.move_to_end((hand_ref, method, settings, criterion))
+        _cache[key] = model
+        _cache.move_to_end(key)
         while len(_cache) > CACHE_SIZE:
             _cache.popitem(last=False)
 
 
 def planning_model(
-    hand_ref: str, method: str = "ellipsoid", settings: Settings | None = None, criterion: Criterion = "absolute"
+    hand_ref: str,
+    method: str = "ellipsoid",
+    settings: Settings | None = None,
+    criterion: Criterion = "absolute",
+    revision: str = "",
 ) -> HandPlanningModel:
-    """The hand's planning model: cached per hand, CS method and criterion, else built now
+    """The hand's planning model: cached per hand, CS method, settings, criterion and revision, else built now
     (:func:`build_planning_model`, which simulates the hand's closure) and kept."""
-    model = cached_planning_model(hand_ref, method, settings, criterion)
+    model = cached_planning_model(hand_ref, method, settings, criterion, revision)
     if model is None:
         model = build_planning_model(hand_ref, method, settings, criterion)
-        remember_planning_model(model, hand_ref, method, settings, criterion)
+        remember_planning_model(model, hand_ref, method, settings, criterion, revision)
     return model
 
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -48,6 +49,8 @@ from softsig_service.planning.wrist_pose import solve_wrist_pose_unchecked
 START_HEIGHT = 0.5
 """[m] the descent starts this far above the object's centre along the approach."""
 APPROACH_WAYPOINTS = 4
+WORLDS_PER_MODEL = 8
+"""Collision worlds (one per table height) a thread keeps per hand model."""
 GJK_SLACK = 1e-6
 """[m] what coal's distances may be off by (its GJK tolerance)."""
 
@@ -79,32 +82,44 @@ class Planner:
         self.settings = settings
         self.ur5 = ur5 or load_ur5(settings.robots_dir if settings is not None else None)
         self._local = threading.local()
-        self._hands: dict[str, HandGeometry] = {}
+        self._hands: weakref.WeakKeyDictionary[HandPlanningModel, HandGeometry] = weakref.WeakKeyDictionary()
         self._hands_lock = threading.Lock()
 
     def _world(self, model: HandPlanningModel, table_height: float) -> CollisionWorld:
-        """This thread's collision world for the hand ``model`` over a table at ``table_height`` [m]."""
-        worlds: dict[str, CollisionWorld] | None = getattr(self._local, "worlds", None)
+        """This thread's collision world for the hand ``model`` over a table at ``table_height`` [m].
+
+        Keyed by the model itself (weakly: a model the planning-model cache has let go takes its worlds with it),
+        so a replaced hand's new model never meets its old geometry; at most ``WORLDS_PER_MODEL`` table heights
+        per model and thread (least recently used first out)."""
+        worlds: weakref.WeakKeyDictionary[HandPlanningModel, dict[float, CollisionWorld]] | None = getattr(
+            self._local, "worlds", None
+        )
         if worlds is None:
-            worlds = self._local.worlds = {}
-        key = f"{model.name}@{table_height:.6f}"
-        world = worlds.get(key)
+            worlds = self._local.worlds = weakref.WeakKeyDictionary()
+        by_height = worlds.get(model)
+        if by_height is None:
+            by_height = worlds[model] = {}
+        key = round(table_height, 6)
+        world = by_height.pop(key, None)
         if world is None:
-            world = worlds[key] = CollisionWorld(self.ur5, model.shapes, table_height=table_height)
+            world = CollisionWorld(self.ur5, model.shapes, table_height=table_height)
+            while len(by_height) >= WORLDS_PER_MODEL:
+                del by_height[next(iter(by_height))]
+        by_height[key] = world  # re-inserted: the dict's order is the order of use
         return world
 
     def _hand(self, model: HandPlanningModel) -> HandGeometry:
         """The hand's clearance geometry, built once per hand and shared by every thread."""
-        hand = self._hands.get(model.name)
+        hand = self._hands.get(model)
         if hand is None:
             with self._hands_lock:
-                hand = self._hands.setdefault(model.name, HandGeometry(model.shapes))
+                hand = self._hands.setdefault(model, HandGeometry(model.shapes))
         return hand
 
     def plan(self, req: PlanRequest) -> GraspPlan:
         """Plan ``req``; never raises for an infeasible problem (``success=False`` with reasons)."""
         t_start = time.perf_counter()
-        model = planning_model(req.hand, req.cs_method, self.settings, req.cs_criterion)
+        model = planning_model(req.hand, req.cs_method, self.settings, req.cs_criterion, req.hand_revision)
         obj = req.obj
         q_now = np.asarray(req.current_q if req.current_q is not None else HOME_Q, dtype=float)
         closing = obj.o2 if req.closing_axis == "minor" else obj.o1
@@ -224,7 +239,7 @@ class Planner:
 
         Runs the same IK, approach and collision checks as :meth:`plan` on a pose given by the caller.
         """
-        model = planning_model(req.hand, req.cs_method, self.settings, req.cs_criterion)
+        model = planning_model(req.hand, req.cs_method, self.settings, req.cs_criterion, req.hand_revision)
         q_now = np.asarray(req.current_q or HOME_Q, dtype=float)
         c = _Candidate(T=np.asarray(T_grasp, dtype=float), status="given", iterations=0)
         c.T_pre = c.T.copy()

@@ -49,6 +49,9 @@ class PlanRequest:
     """[m] standard deviation of the object's x and y about its nominal pose (strategy R plans for it)."""
     capture: CaptureModel | None = None
     """The hand's capture model on this object (strategy R; :mod:`softsig_service.signatures.capture`)."""
+    hand_revision: str = ""
+    """What names the content of ``hand`` (the registry's ETag of the hand; "" for a folder as it is on disk): the
+    planner's cached models of the hand are keyed by it, so a replaced hand is never planned with its old model."""
     relative_pose: tuple[float, float, float] | None = None
     """Put the hand at this relative pose (theta [rad], u, v [m]; :mod:`softsig_service.signatures.capture`)
     instead of the strategy's choice (diagnostics and the capture model's simulations)."""

@@ -65,10 +65,15 @@ class HandRef:
     name: str
     revision: int
     manifest_path: str
+    token: str = ""
+    """Names this revision of the hand, unique also across a delete and a re-creation (its ETag's text): what the
+    planner's caches of the hand are keyed by."""
 
 
 _HANDS = HandRow.__table__
-_REF_QUERY = select(_HANDS.c.name, _HANDS.c.revision, _HANDS.c.manifest_path).where(_HANDS.c.name == bindparam("name"))
+_REF_QUERY = select(_HANDS.c.name, _HANDS.c.revision, _HANDS.c.manifest_path, _HANDS.c.created_at).where(
+    _HANDS.c.name == bindparam("name")
+)
 
 
 def _hand(row: HandRow) -> HandRecord:
@@ -105,8 +110,9 @@ def hand_ref(reg: Registry, name: str, *, field: str = "hand") -> HandRef:
         row = conn.execute(_REF_QUERY, {"name": name}).one_or_none()
     if row is None:  # HandNotFound with the registered names as choices (or a hand registered meanwhile)
         rec = get_hand(reg, name, field=field)
-        return HandRef(rec.name, rec.revision, rec.manifest_path)
-    return HandRef(row.name, row.revision, row.manifest_path)
+        return HandRef(rec.name, rec.revision, rec.manifest_path, rec.etag.strip('"'))
+    token = f"{row.name}.r{row.revision}.{incarnation(row.created_at)}"
+    return HandRef(row.name, row.revision, row.manifest_path, token)
 
 
 def hand_names(reg: Registry) -> list[str]:

@@ -27,6 +27,7 @@ from softsig_service.api.plan_schemas import PlanIn, PlanList, PlanOut
 from softsig_service.api.routes.common import problem, read_route, write_route
 from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page_of
 from softsig_service.api.schemas import HAND_NAME_PATTERN
+from softsig_service.config import Settings
 from softsig_service.errors import HandNotFound, InvalidInput, NotFound
 from softsig_service.objects import TableObject
 from softsig_service.objects.schema import object_json
@@ -51,9 +52,10 @@ def _plan_hand(ctx: AppContext, body: PlanIn) -> repo.HandRef:
         raise InvalidInput("unknown hand", field="hand", value=body.hand, choices=exc.choices) from None
 
 
-def _model_key(hand: repo.HandRef, body: PlanIn) -> tuple[str, str, None, Criterion]:
-    """The arguments that name the hand's planning model for ``body`` (manifest, CS method, settings, criterion)."""
-    return (hand.manifest_path, body.cs_method, None, body.cs_criterion)
+def _model_key(ctx: AppContext, hand: repo.HandRef, body: PlanIn) -> tuple[str, str, Settings, Criterion, str]:
+    """The arguments that name the hand's planning model for ``body`` (manifest, CS method, the service's settings,
+    criterion, the hand's revision token), the same the app's planner asks for."""
+    return (hand.manifest_path, body.cs_method, ctx.settings, body.cs_criterion, hand.token)
 
 
 async def _build_planning_model(ctx: AppContext, hand: repo.HandRef, body: PlanIn) -> None:
@@ -61,9 +63,9 @@ async def _build_planning_model(ctx: AppContext, hand: repo.HandRef, body: PlanI
     limit; never in the request's thread."""
     from softsig_service.planning import build_planning_model, remember_planning_model
 
-    key = _model_key(hand, body)
+    key = _model_key(ctx, hand, body)
     model = await ctx.pool.run(
-        build_planning_model, *key, what="building the hand's planning model (its closure)", field="hand"
+        build_planning_model, *key[:4], what="building the hand's planning model (its closure)", field="hand"
     )
     remember_planning_model(model, *key)
 
@@ -74,7 +76,7 @@ def _plan_if_ready(ctx: AppContext, body: PlanIn) -> tuple[repo.HandRef, dict[st
     from softsig_service.planning import cached_planning_model
 
     hand = _plan_hand(ctx, body)
-    if cached_planning_model(*_model_key(hand, body)) is None:
+    if cached_planning_model(*_model_key(ctx, hand, body)) is None:
         return hand, None
     return hand, make_plan(ctx, body, hand)
 
@@ -151,7 +153,7 @@ def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRef) -> dict[str, An
     obj = object_from_json(object_json(body.object))
     capture = capture_model(ctx, hand.name, obj, body.capture_version) if body.strategy == "R" else None
     options = body.model_dump(include=set(_planner_options()))
-    request = PlanRequest(hand=hand.manifest_path, obj=obj, capture=capture, **options)
+    request = PlanRequest(hand=hand.manifest_path, obj=obj, capture=capture, hand_revision=hand.token, **options)
     plan = ctx.planner.plan(request)  # thread-safe: per-thread solvers and collision worlds, no lock
     ctx.metrics.plan_seconds.labels(body.strategy).observe(plan.timing.get("total", 0.0))
     data: dict[str, Any] = vectors_as_objects(to_jsonable(plan.to_json_dict()))

@@ -1,0 +1,88 @@
+"""A hand replaced, deleted and re-created, or loaded under the service's settings: plans follow what the registry
+holds now and the settings the service runs with (the planner's caches are keyed by the hand's revision token and
+the settings, never by the hand's name)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from api_helpers import AUTH, gripper_files, make_settings, upload
+from fastapi.testclient import TestClient
+
+from softsig_service.api.app import create_app
+
+BOX = {"kind": "builtin", "name": "box", "pose": {"x": 0.5, "y": 0.05, "yaw": 0.4}}
+PLAN = {"hand": "g", "object": BOX, "strategy": "S", "store": False}
+
+
+def _long_jaws(files: dict[str, bytes]) -> dict[str, bytes]:
+    """The gripper with jaws 6 cm longer (the jaw boxes' half-length 25 -> 55 mm, their centres moved with them)."""
+    xml = files["parallel_gripper.xml"].decode()
+    for old, new in (
+        ('class="jaw" size="0.011 0.005 0.025" pos="0 0.011 0.025"', 'class="jaw" size="0.011 0.005 0.055" pos="0 0.011 0.055"'),
+        ('class="jaw" size="0.011 0.005 0.025" pos="0 -0.011 0.025"', 'class="jaw" size="0.011 0.005 0.055" pos="0 -0.011 0.055"'),
+    ):  # fmt: skip
+        assert old in xml
+        xml = xml.replace(old, new)
+    return {**files, "parallel_gripper.xml": xml.encode()}
+
+
+def _plan(api: TestClient) -> dict[str, Any]:
+    r = api.post("/v1/plans", json=PLAN, headers=AUTH)
+    assert r.status_code == 200, r.text
+    return r.json()
+
+
+def _fresh_plan(tmp_path: Path, files: dict[str, bytes]) -> dict[str, Any]:
+    with TestClient(create_app(make_settings(tmp_path / "fresh"))) as api:
+        assert api.post("/v1/hands", files=upload(files), headers=AUTH).status_code == 201
+        return _plan(api)
+
+
+def _close(a: dict[str, Any], b: dict[str, Any]) -> bool:
+    ka, kb = a["grasp_pose"], b["grasp_pose"]
+    parts = [p for p in ka if isinstance(ka[p], dict)]
+    assert parts
+    return all(abs(ka[p][c] - kb[p][c]) <= 1e-9 for p in parts for c in ka[p])
+
+
+def test_a_replaced_or_recreated_hand_is_planned_with_its_new_geometry(tmp_path: Path) -> None:
+    short, long = gripper_files("g"), _long_jaws(gripper_files("g"))
+    expected = _fresh_plan(tmp_path, long)
+    with TestClient(create_app(make_settings(tmp_path / "svc"))) as api:
+        r = api.post("/v1/hands", files=upload(short), headers=AUTH)
+        assert r.status_code == 201, r.text
+        first = _plan(api)
+        assert first["success"] and first["hand_revision"] == 1
+        put = api.put("/v1/hands/g", files=upload(long), headers={**AUTH, "If-Match": r.headers["etag"]})
+        assert put.status_code == 200, put.text
+        second = _plan(api)
+        assert second["success"] and second["hand_revision"] == 2
+        assert second["grasp_pose"]["position"]["z"] > first["grasp_pose"]["position"]["z"] + 0.03
+        assert _close(second, expected)
+        # deleted and re-created under the same name with the short jaws again: revision 1 again, old geometry
+        assert api.delete("/v1/hands/g", headers={**AUTH, "If-Match": put.headers["etag"]}).status_code == 204
+        assert api.post("/v1/hands", files=upload(short), headers=AUTH).status_code == 201
+        again = _plan(api)
+        assert again["hand_revision"] == 1 and _close(again, first)
+        # and back to the long jaws once more, through the registry's new incarnation
+        etag = api.get("/v1/hands/g").headers["etag"]
+        assert api.put("/v1/hands/g", files=upload(long), headers={**AUTH, "If-Match": etag}).status_code == 200
+        assert _close(_plan(api), expected)
+
+
+def test_planning_loads_hands_under_the_services_limits(tmp_path: Path) -> None:
+    """A 2.5 MB model, above the default model limit (2 MB) and below the service's raised one (5 MB), uploads
+    and is planned: the planner loads the hand with the service's limits, not the defaults."""
+    from softsig_service.config import ModelLimits
+
+    files = gripper_files("g", with_mesh=False)
+    padding = b"<!-- " + b"x" * 2_500_000 + b" -->\n"
+    files["parallel_gripper.xml"] = padding + files["parallel_gripper.xml"]
+    assert len(files["parallel_gripper.xml"]) > ModelLimits().max_model_bytes
+    settings = make_settings(tmp_path, limits=ModelLimits(max_model_bytes=5_000_000), max_upload_bytes=8_000_000)
+    with TestClient(create_app(settings)) as api:
+        r = api.post("/v1/hands", files=upload(files), headers=AUTH)
+        assert r.status_code == 201, r.text
+        assert _plan(api)["success"]
