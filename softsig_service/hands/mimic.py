@@ -51,9 +51,12 @@ def _number(el: ET.Element, attr: str, default: float, joint: str) -> float:
 
 
 def mimic_couplings(urdf_xml: str) -> dict[str, Coupling]:
-    """Every mimic of a URDF, resolved to its root joint; keyed by the mimicking joint's name."""
+    """Every mimic of a URDF, resolved to its root joint; keyed by the mimicking joint's name.
+
+    Only the robot's own joints (``<joint>`` children of ``<robot>``) count: a ``<transmission>`` names joints
+    with ``<joint name=...>`` elements of its own, which must not stand in for the real ones."""
     root = ET.fromstring(urdf_xml)
-    joints = {j.get("name", ""): j for j in root.iter("joint")}
+    joints = {j.get("name", ""): j for j in root.findall("joint")}
     direct: dict[str, Coupling] = {}
     for name, el in joints.items():
         tag = el.find("mimic")
