@@ -71,8 +71,14 @@ async def capture_signature_version(
 async def stiffness_signature_version(
     ctx: AppContext, hand: repo.HandRecord, body: StiffnessSignatureIn, if_match: str | None
 ) -> repo.JobRecord:
-    """Submit the stiffness-signature job of ``hand`` (stored as a new version when it succeeds)."""
-    params = {"hand": hand.name, "object": object_json(body.object), "hand_revision": hand.revision}
+    """Submit the stiffness-signature job of ``hand`` (stored as a new version when it succeeds); an object that
+    cannot be grasped is refused now, naming the field."""
+    from softsig_service.objects import object_from_json
+    from softsig_service.simulation.stiffness_signature import check_graspable
+
+    obj = object_json(body.object)
+    check_graspable(object_from_json(obj))
+    params = {"hand": hand.name, "object": obj, "hand_revision": hand.revision}
     if if_match is not None:
         params["if_match"] = if_match
     private = {"manifest_path": hand.manifest_path, "limits": ctx.settings.limits.model_dump()}

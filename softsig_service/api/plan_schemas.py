@@ -27,8 +27,8 @@ class PlanIn(Strict):
     sigma_r: float = Field(0.0, ge=0.0, le=1.0, strict=True, description="std. dev. of the object's yaw [rad] (R)")
     sigma_t: float = Field(0.0, ge=0.0, le=1.0, strict=True, description="std. dev. of its x and y [m] (R)")
     capture_version: int | None = Field(
-        None, ge=1, strict=True, description="signature version of the capture model R uses (default: the newest "
-        "for this object)",
+        None, ge=1, le=2**31 - 1, strict=True,
+        description="signature version of the capture model R uses (default: the newest for this object)",
     )  # fmt: skip
     current_q: tuple[JointAngle, JointAngle, JointAngle, JointAngle, JointAngle, JointAngle] | None = None
     closing_axis: Literal["minor", "major"] = Field("minor", description="object axis the CS closes across (C)")

@@ -23,6 +23,7 @@ from softsig_service.objects.schema import (
     ObjectSpec,
     Strict,
 )
+from softsig_service.signatures.capture import MIN_CAPTURE_STEP
 
 HAND_NAME_PATTERN = r"^[a-z][a-z0-9_\-]{0,63}$"
 """Names of hands (the hand manifest's ``name`` rule)."""
@@ -170,7 +171,9 @@ class CaptureSignatureIn(Strict):
     object: ObjectSpec
     n_theta: int = Field(12, ge=2, le=72, strict=True, description="relative yaws over a half turn")
     half_width: float = Field(0.03, gt=0.0, le=0.1, strict=True, description="largest offset [m]")
-    step: float = Field(0.01, gt=0.0, le=0.1, strict=True, description="offset step [m], at most half_width")
+    step: float = Field(
+        0.01, ge=MIN_CAPTURE_STEP, le=0.1, strict=True, description="offset step [m], at most half_width"
+    )
     holdout: int = Field(60, ge=0, le=10_000, strict=True, description="held-out simulations at random poses")
     seed: int = Field(0, ge=0, le=2**32 - 1, strict=True, description="seed of the held-out poses")
 

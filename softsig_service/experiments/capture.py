@@ -28,7 +28,14 @@ import numpy as np
 
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
-from softsig_service.signatures.capture import CaptureModel, FloatArray, agreement, theta_axis, uniform_axis
+from softsig_service.signatures.capture import (
+    MIN_CAPTURE_STEP,
+    CaptureModel,
+    FloatArray,
+    agreement,
+    theta_axis,
+    uniform_axis,
+)
 
 CaptureSample = tuple[float, float, float, bool]
 """``(theta [rad], u [m], v [m], carried)``."""
@@ -48,8 +55,10 @@ class CaptureGrid:
     def __post_init__(self) -> None:
         if not 2 <= self.n_theta <= 72:
             raise InvalidInput("must be within [2, 72]", field="n_theta", value=self.n_theta)
-        if not (0.0 < self.step <= self.half_width <= 0.1):
-            raise InvalidInput("need 0 < step <= half_width <= 0.1 m", field="half_width", value=self.half_width)
+        if not MIN_CAPTURE_STEP <= self.step <= 0.1:
+            raise InvalidInput(f"must be within [{MIN_CAPTURE_STEP:g}, 0.1] m", field="step", value=self.step)
+        if not (self.step <= self.half_width <= 0.1):
+            raise InvalidInput("need step <= half_width <= 0.1 m", field="half_width", value=self.half_width)
         if not 0 <= self.holdout <= 10_000:
             raise InvalidInput("must be within [0, 10000]", field="holdout", value=self.holdout)
 
@@ -60,8 +69,9 @@ class CaptureGrid:
 
     @property
     def simulations(self) -> int:
-        """How many grasps the grid and the held-out checks simulate."""
-        return self.n_theta * len(self.offsets) ** 2 + self.holdout
+        """How many grasps the grid and the held-out checks simulate (counted, nothing allocated)."""
+        per_axis = 2 * round(self.half_width / self.step) + 1  # len(self.offsets)
+        return self.n_theta * per_axis**2 + self.holdout
 
 
 def simulate_relative_yaw(

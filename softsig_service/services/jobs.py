@@ -8,7 +8,8 @@ result. At most ``max_queued_jobs`` are unfinished (else :class:`ServiceBusy`).
 
 **Several processes, one registry.** A submitted job is only queued in the registry (``jobs`` table); every
 process of the service runs a :class:`JobManager` that claims queued jobs while it has a free slot (at most
-``job_workers`` at once), with a lease that its heartbeat renews (:mod:`softsig_service.registry.jobs`). A
+``job_workers`` at once), with a lease that a heartbeat thread renews (:mod:`softsig_service.services.leases`,
+:mod:`softsig_service.registry.jobs`). A
 process that dies (``kill -9``, a crash) takes its job processes with it (they follow their parent) and leaves
 its jobs to whichever process claims them once their lease (``job_lease`` [s]) has expired; the job runs again
 from the start in its folder (an experiment resumes from the trials it already stored). Only the process holding
@@ -44,6 +45,7 @@ from softsig_service.registry.db import Registry
 from softsig_service.registry.models import utcnow
 from softsig_service.services.compute import rebuild_error
 from softsig_service.services.job_process import job_main, kill_group
+from softsig_service.services.leases import LeaseKeeper
 from softsig_service.services.observability import Metrics
 from softsig_service.services.problems import softsig_problem
 from softsig_service.services.serialize import to_jsonable
@@ -95,6 +97,8 @@ class JobManager:
         self._wake = asyncio.Event()
         self._dispatcher: asyncio.Task[None] | None = None
         self._stopping = False
+        self.leases = LeaseKeeper(registry, self.owner, settings.job_lease, self.heartbeat)
+        """Renews the leases of this process's running jobs on a thread of its own (:mod:`.leases`)."""
 
     @property
     def heartbeat(self) -> float:
@@ -104,6 +108,7 @@ class JobManager:
     async def start(self) -> None:
         """Start claiming jobs: queued ones, and those whose process died (their lease expired)."""
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
+        self.leases.start()
         self._dispatcher = asyncio.create_task(self._dispatch())
 
     def out_dir(self, job_id: str) -> Path:
@@ -186,8 +191,19 @@ class JobManager:
         if tasks:
             await asyncio.wait(tasks, timeout=SHUTDOWN_WAIT)
         n = await run_in_threadpool(repo.release_jobs, self.registry, self.owner)
+        await run_in_threadpool(self.leases.stop)
         if n:
             log.warning("handed %d running jobs back to the queue at shutdown", n)
+
+    def _claim(self) -> repo.Claim | None:
+        """Claim a job and hold its lease at once, on the claiming thread (the event loop may be slow to resume)."""
+        claim = repo.claim_job(
+            self.registry, self.owner, self.settings.job_lease,
+            kinds=tuple(self.kinds), max_attempts=self.settings.job_max_attempts,
+        )  # fmt: skip
+        if claim is not None:
+            self.leases.hold(claim.record.id)
+        return claim
 
     async def _dispatch(self) -> None:
         """Claim jobs while a slot is free; look again when woken (a submission, a finished job) or every
@@ -197,12 +213,7 @@ class JobManager:
             claim = None
             if len(self._tasks) < self.settings.job_workers:
                 try:
-                    claim = await run_in_threadpool(
-                        functools.partial(
-                            repo.claim_job, self.registry, self.owner, self.settings.job_lease,
-                            kinds=tuple(self.kinds), max_attempts=self.settings.job_max_attempts,
-                        )
-                    )  # fmt: skip
+                    claim = await run_in_threadpool(self._claim)
                 except Exception:  # the database is busy or away: try again later
                     log.exception("claiming a job failed")
             if claim is not None and not self._stopping:  # (a claim made while stopping is handed back)
@@ -238,6 +249,7 @@ class JobManager:
             with contextlib.suppress(Exception):
                 await self._finish(job_id, rec.kind, "failed", error={"type": "internal-error", "detail": str(exc)})
         finally:
+            self.leases.release(job_id)
             self._tasks.pop(job_id, None)
             self._cancel.pop(job_id, None)
             self._wake.set()
@@ -254,7 +266,6 @@ class JobManager:
         self._procs[job_id] = proc
         self.metrics.jobs_running.inc()
         deadline = time.monotonic() + limit
-        next_beat = time.monotonic() + self.heartbeat
         outcome: tuple[Any, ...] | None = None
         last_write = 0.0
         pending: tuple[float, str] | None = None
@@ -284,17 +295,13 @@ class JobManager:
                             repo.update_job, self.registry, job_id, owner=self.owner, progress=frac, message=text
                         )
                     )
-                if now >= next_beat:
-                    next_beat = now + self.heartbeat
-                    held = await run_in_threadpool(
-                        repo.renew_lease, self.registry, job_id, self.owner, self.settings.job_lease
-                    )
-                    if held is None:  # another process holds it now, or it was finished: stop, write nothing
-                        log.warning("job %s: lease lost; stopping this process's run of it", job_id)
-                        await run_in_threadpool(kill_group, proc)
-                        return
-                    if held.cancel_requested:
-                        cancel.set()
+                lease = self.leases.state(job_id)
+                if not lease.held:  # another process holds it now, or it was finished: stop, write nothing
+                    log.warning("job %s: lease lost; stopping this process's run of it", job_id)
+                    await run_in_threadpool(kill_group, proc)
+                    return
+                if lease.cancel_requested:
+                    cancel.set()
                 if cancel.is_set():
                     await run_in_threadpool(kill_group, proc)
                     await self._finish(job_id, kind.name, "cancelled", message="cancelled")

@@ -7,12 +7,18 @@ import math
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from softsig_service.config import Settings
     from softsig_service.signatures.closure_types import Criterion
 
 
-def render_plan_png(plan: dict[str, Any], manifest_path: str | None) -> bytes:
+def render_plan_png(
+    plan: dict[str, Any], manifest_path: str | None, settings: Settings | None = None, revision: str = ""
+) -> bytes:
     """A top view (world x-y, metres) of a plan: the object's footprint and principal axes, the open hand's
     reference points at the grasp pose, the flange axes, the closure signature's axis and the approach start.
+
+    The hand is drawn from ``manifest_path`` loaded under ``settings``; ``revision`` names that revision of the
+    hand (the registry's token) and keys the planner's cache of it, so a replaced hand is never drawn stale.
 
     Drawn with Matplotlib (no OpenGL needed). Returns PNG bytes.
     """
@@ -62,7 +68,7 @@ def render_plan_png(plan: dict[str, Any], manifest_path: str | None) -> bytes:
             solver = plan.get("solver") or {}
             method = str(solver.get("cs_method", "ellipsoid"))
             criterion: Criterion = "relative" if solver.get("cs_criterion") == "relative" else "absolute"
-            model = planning_model(manifest_path, method, None, criterion)
+            model = planning_model(manifest_path, method, settings, criterion, revision)
             pts = model.points_open @ Rg.T + p
             if len(pts) >= 3:
                 hull = convex_hull_2d(pts[:, :2])

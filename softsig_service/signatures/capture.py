@@ -186,6 +186,11 @@ class CaptureModel:
             raise InvalidInput(f"not a capture model: {exc}", field="capture") from None
 
 
+MIN_CAPTURE_STEP = 1e-4
+"""[m] the finest offset step of a capture grid: 0.1 mm, the UR5's stated pose repeatability (+-0.1 mm, Universal
+Robots' UR5 technical specifications); a finer grid resolves nothing the arm can place."""
+
+
 def uniform_axis(half_width: float, step: float) -> FloatArray:
     """``-half_width .. half_width`` [m] in steps of ``step`` [m] (symmetric about 0)."""
     n = round(half_width / step)

@@ -58,6 +58,24 @@ MAX_LIFT_STEPS = 40
 """How many steps of ``GraspSettings.search_step`` along +z a shifted placement may take to clear the open hand."""
 
 
+MIN_GRASP_EXTENT = 0.002
+"""[m] the smallest largest-extent of an object a stiffness signature is computed on (approximate). Closing on cubes
+of 2, 5, 10 and 20 mm, the built-in parallel gripper and SoftHand touch every one, the RBO Hand 2 those from 5 mm
+and the SDM Hand those from 10 mm; nothing touches a 0.1 mm cube. Smaller objects are refused before any
+simulation; a hand that closes on a larger one without touching it fails the job, naming the object."""
+
+
+def check_graspable(obj: TableObject) -> None:
+    """Refuse (:class:`InvalidInput`, field ``object``) an object too small to be grasped (``MIN_GRASP_EXTENT``)."""
+    size = 2.0 * float(np.max(obj.half_extents))
+    if not size >= MIN_GRASP_EXTENT:
+        raise InvalidInput(
+            f"the object is {size * 1000:.3g} mm at its largest; a grasp needs at least {MIN_GRASP_EXTENT * 1000:g} mm",
+            field="object",
+            value=size,
+        )
+
+
 def find_power_grasp(
     hand: HandModel, obj: TableObject | str | Mapping[str, Any], **options: Unpack[GraspOptions]
 ) -> Grasp:
@@ -129,6 +147,12 @@ def compute_stiffness_signature(
         hand, obj, center=center, orientation=orientation, settings=grasp_settings, app_settings=app_settings
     )
     mats = grasp_matrices(grasp)
+    if not mats.contacts:
+        raise InvalidInput(
+            f"the hand closed without touching the object (half-extents "
+            f"{', '.join(f'{h:.4g}' for h in grasp.object.half_extents)} m): no grasp, no grasp stiffness",
+            field="object",
+        )
     terms = grasp_stiffness_from_matrices(
         mats, contact_stiffness=contact_stiffness, tangential_ratio=tangential_ratio, transmission=transmission
     )

@@ -86,3 +86,8 @@ def test_planning_loads_hands_under_the_services_limits(tmp_path: Path) -> None:
         r = api.post("/v1/hands", files=upload(files), headers=AUTH)
         assert r.status_code == 201, r.text
         assert _plan(api)["success"]
+        stored = api.post("/v1/plans", json={**PLAN, "store": True}, headers=AUTH)
+        assert stored.status_code == 201, stored.text
+        image = api.get(f"/v1/plans/{stored.json()['id']}/image.png")  # drawn with the hand, loaded the same way
+        assert image.status_code == 200, image.text
+        assert image.content.startswith(b"\x89PNG")

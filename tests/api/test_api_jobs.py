@@ -115,3 +115,31 @@ def test_unknown_jobs(api: TestClient) -> None:
     assert_problem(api.get("/v1/jobs/" + "a" * 32), 404, "job_id")
     assert_problem(api.get("/v1/jobs/xyz"), 422, "job_id")
     assert_problem(api.post("/v1/jobs/" + "a" * 32 + "/cancel", headers=AUTH), 404, "job_id")
+
+
+def test_a_starved_event_loop_keeps_its_jobs_lease(tmp_path: Path, database_url: str) -> None:
+    """The event loop held for three leases (a burst of requests, a slow hook, a starved CPU): the lease of the
+    running job is renewed all the same, so another process cannot claim it and redo it."""
+    import time
+
+    from softsig_service import registry as repo
+
+    lease = 1.0
+    settings = make_settings(tmp_path, job_workers=1, job_lease=lease, job_poll_interval=0.2, database_url=database_url)
+    with TestClient(create_app(settings, job_kinds=TEST_JOB_KINDS)) as client:
+        job_id = submit(client, "count", {"n": 4, "gate": True})
+        wait_for(lambda: client.get(f"/v1/jobs/{job_id}").json()["progress"] > 0)
+        ctx = client.app.state.ctx  # type: ignore[attr-defined]
+
+        async def hog() -> repo.Claim | None:  # holds the event loop (pure Python, as a CPU-bound handler does)
+            end = time.monotonic() + 3 * lease
+            while time.monotonic() < end:
+                pass
+            # another process tries its claim while this one's loop is still held
+            return repo.claim_job(ctx.registry, "another-process", lease, kinds=("count",), max_attempts=3)
+
+        other = client.portal.call(hog)
+        assert other is None, "the job's lease expired while its holder was alive"
+        (ctx.jobs.out_dir(job_id) / "gate").touch()
+        job = wait_for(lambda: finished(client, job_id))
+        assert job["status"] == "succeeded" and job["attempts"] == 1, job

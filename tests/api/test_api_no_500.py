@@ -85,3 +85,44 @@ def test_csv_rows_and_points_are_capped() -> None:
     with pytest.raises(InvalidTrajectory) as info:
         parse_markers_csv("time,point,x,y,z\n" + many)
     assert info.value.field == "row 258: point"
+
+
+BOX = {"kind": "box", "size": [0.16, 0.06, 0.05], "mass": 0.15}
+
+
+def test_a_capture_version_past_the_databases_integers(api: TestClient) -> None:
+    body = {"hand": "parallel_gripper", "object": BOX, "strategy": "R", "capture_version": 2**63}
+    problem = assert_problem(api.post("/v1/plans", json=body, headers=AUTH), 422)
+    assert "capture_version" in str(problem.get("field", "")) or "capture_version" in json.dumps(problem), problem
+
+
+@pytest.mark.parametrize("step", [5e-324, 1.1e-30, 1e-9, 5e-5])
+def test_capture_steps_too_fine(api: TestClient, step: float) -> None:
+    """Refused by the schema's bound, before any grid is built (1e-9 once allocated 1.5 GB before its 422)."""
+    body = {"object": BOX, "step": step}
+    problem = assert_problem(api.post("/v1/hands/parallel_gripper/signatures/capture", json=body, headers=AUTH), 422)
+    assert "step" in json.dumps(problem), problem
+
+
+def test_a_capture_grid_is_counted_not_built() -> None:
+    """The count of a grid that asks for 10**14 simulations is arithmetic: no array of that size is made."""
+    import tracemalloc
+
+    from softsig_service.experiments.capture import CaptureGrid
+
+    grid = CaptureGrid(n_theta=72, half_width=0.1, step=1e-4, holdout=0)
+    tracemalloc.start()
+    n = grid.simulations
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert n == 72 * 2001**2
+    assert peak < 4096, peak  # the 2001 offsets alone would take 16 kB
+    assert CaptureGrid(n_theta=12, half_width=0.03, step=0.01).simulations == 12 * 7**2 + 60
+
+
+def test_a_stiffness_job_on_an_object_too_small_is_refused_at_submission(api: TestClient) -> None:
+    tiny = {"kind": "box", "size": [1e-4, 1e-4, 1e-4], "mass": 0.01}
+    r = api.post("/v1/hands/parallel_gripper/signatures/stiffness", json={"object": tiny}, headers=AUTH)
+    problem = assert_problem(r, 422)
+    assert problem["field"] == "object", problem
+    assert api.get("/v1/jobs").json()["total"] == 0, "no job was queued"

@@ -246,13 +246,18 @@ async def plan_image(ctx: Ctx, plan_id: PlanId) -> Response:
     if not path.is_file():
         rec = await run_in_threadpool(repo.get_plan, ctx.registry, plan_id)
         manifest: str | None = None
+        token = ""
         try:
             hand = await run_in_threadpool(ctx.hand, rec.hand)
-            if hand.revision == rec.result.get("hand_revision"):
-                manifest = hand.manifest_path  # the hand as it was planned with
+            # the hand as it was planned with: the same revision of the same incarnation (one created before the
+            # plan; a hand deleted and re-created since counts its revisions anew)
+            if hand.revision == rec.result.get("hand_revision") and hand.created_at <= rec.created_at:
+                manifest, token = hand.manifest_path, hand.etag.strip('"')
         except HandNotFound:
             pass
-        png = await ctx.pool.run(render_plan_png, rec.result, manifest, what="drawing the plan", field="plan_id")
+        png = await ctx.pool.run(
+            render_plan_png, rec.result, manifest, ctx.settings, token, what="drawing the plan", field="plan_id"
+        )
         tmp = path.with_name(f"{plan_id}.{uuid.uuid4().hex}.tmp")
         await run_in_threadpool(tmp.write_bytes, png)
         await run_in_threadpool(os.replace, tmp, path)
