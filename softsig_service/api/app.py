@@ -141,7 +141,14 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
         ],
     )
     install_problem_handlers(app)
-    app.add_middleware(IdempotencyMiddleware)  # inside the body limit: a replayed request's body is counted too
+    from softsig_service.api.routes import hands, jobs, ops, plans, signatures
+
+    routers = (ops.router, hands.router, signatures.router, plans.router, jobs.router)
+    for router in routers:
+        app.include_router(router)
+    templates = [route for router in routers for route in router.routes]
+    # inside the body limit: a replayed request's body is counted too
+    app.add_middleware(IdempotencyMiddleware, routes=templates)
     app.add_middleware(
         BodyLimitMiddleware,
         max_body_bytes=settings.max_body_bytes,
@@ -155,12 +162,6 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
         read_auth=settings.read_auth,
         body_read_timeout=settings.body_read_timeout,
     )
-    from softsig_service.api.routes import hands, jobs, ops, plans, signatures
-
-    routers = (ops.router, hands.router, signatures.router, plans.router, jobs.router)
-    for router in routers:
-        app.include_router(router)
-    templates = [route for router in routers for route in router.routes]
     app.add_middleware(RequestContextMiddleware, metrics=metrics, routes=templates)
     return app
 

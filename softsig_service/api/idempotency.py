@@ -14,10 +14,13 @@ from __future__ import annotations
 
 import hashlib
 import re
+from collections.abc import Sequence
 from typing import Any
 
+from fastapi.routing import APIRoute
 from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import Headers
+from starlette.routing import BaseRoute
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from softsig_service.api.problems import problem_body, problem_response
@@ -25,30 +28,41 @@ from softsig_service.registry.idempotency import claim_key, complete_key, find_k
 
 HEADER = "idempotency-key"
 KEY_PATTERN = re.compile(r"^[\x21-\x7e]{1,255}$")
-CREATING_PATHS: tuple[str, ...] = (
-    r"/v1/hands",
-    r"/v1/hands/archive",
-    r"/v1/hands/[^/]+/signatures/(closure|stiffness|markers)",
-    r"/v1/plans",
-    r"/v1/validations",
-    r"/v1/experiments",
-)
-"""The POST routes that create a resource (a hand, a signature version, a plan, a job)."""
+CREATING_STATUSES = (201, 202)
+"""A POST route that answers one of these creates something (a hand, a signature version, a stored plan, a job,
+a cancellation request)."""
 KEPT_HEADERS = (b"content-type", b"location", b"etag")
 
 
-class IdempotencyMiddleware:
-    """Pure ASGI middleware implementing ``Idempotency-Key`` (module docstring) on :data:`CREATING_PATHS`."""
+def creating_routes(routes: Sequence[BaseRoute]) -> list[APIRoute]:
+    """The POST routes among ``routes`` that declare a creating answer (:data:`CREATING_STATUSES`), as their
+    status code or among their documented responses: the routes ``Idempotency-Key`` covers."""
+    out = []
+    for route in routes:
+        if isinstance(route, APIRoute) and "POST" in (route.methods or ()):
+            declared = {route.status_code, *(int(code) for code in route.responses if str(code).isdigit())}
+            if declared & set(CREATING_STATUSES):
+                out.append(route)
+    return out
 
-    def __init__(self, app: ASGIApp) -> None:
+
+class IdempotencyMiddleware:
+    """Pure ASGI middleware implementing ``Idempotency-Key`` (module docstring) on the app's creating POST routes
+    (:func:`creating_routes` of ``routes``)."""
+
+    def __init__(self, app: ASGIApp, routes: Sequence[BaseRoute]) -> None:
         self.app = app
-        self.paths = re.compile("|".join(f"(?:{p})" for p in CREATING_PATHS))
+        self.routes = creating_routes(routes)
+
+    def covers(self, path: str) -> bool:
+        """Whether ``path`` is served by a creating POST route."""
+        return any(route.path_regex.match(path) for route in self.routes)
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         headers = Headers(scope=scope) if scope["type"] == "http" and scope.get("method") == "POST" else Headers()
         key = headers.get(HEADER)
         ctx = getattr(scope["app"].state, "ctx", None) if key is not None else None
-        if key is None or ctx is None or not self.paths.fullmatch(scope.get("path", "")):
+        if key is None or ctx is None or not self.covers(scope.get("path", "")):
             await self.app(scope, receive, send)
             return
         path = scope["path"]

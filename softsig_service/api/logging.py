@@ -29,6 +29,7 @@ from typing import Any
 from starlette.routing import BaseRoute, Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from softsig_service.api.problems import internal_error
 from softsig_service.services.observability import Metrics, request_id_var
 
 _REQUEST_ID = re.compile(r"^[A-Za-z0-9._:\-]{1,128}$")
@@ -116,9 +117,12 @@ class RequestContextMiddleware:
         t0 = time.perf_counter()
         self.metrics.in_progress.inc()
 
+        started = False
+
         async def send_with_id(message: Message) -> None:
-            nonlocal status
+            nonlocal status, started
             if message["type"] == "http.response.start":
+                started = True
                 status = int(message["status"])
                 headers = list(message.get("headers", []))
                 headers.append((b"x-request-id", rid.encode("latin-1")))
@@ -126,7 +130,13 @@ class RequestContextMiddleware:
             await send(message)
 
         try:
-            await self.app(scope, receive, send_with_id)
+            try:
+                await self.app(scope, receive, send_with_id)
+            except Exception as exc:  # answered and logged here, where the request's id is still known
+                if started:
+                    raise
+                response = internal_error(scope.get("method", ""), scope.get("path", ""), exc)
+                await response(scope, receive, send_with_id)
         finally:
             dt = time.perf_counter() - t0
             self.metrics.in_progress.dec()

@@ -48,6 +48,7 @@ from softsig_service.errors import (
     Unauthorized,
 )
 from softsig_service.objects.schema import UNION_TAGS
+from softsig_service.services.observability import request_id_var
 from softsig_service.services.problems import (
     PROBLEM_MEDIA_TYPE,
     TITLES,
@@ -138,15 +139,21 @@ async def _http_handler(request: Request, exc: Exception) -> JSONResponse:
     return problem_response(status, body, dict(exc.headers or {}))
 
 
-async def _unhandled_handler(request: Request, exc: Exception) -> JSONResponse:
-    log.error("unhandled error serving %s %s", request.method, request.url.path, exc_info=exc)
+def internal_error(method: str, path: str, exc: BaseException) -> JSONResponse:
+    """The 500 answer to an unexpected error, its traceback logged first; both carry the request's id (call it
+    where the id is still set: :class:`~softsig_service.api.logging.RequestContextMiddleware`)."""
+    log.error("unhandled error serving %s %s", method, path, exc_info=exc, extra={"request_id": request_id_var.get()})
     body = problem_body(
         500,
         slug="internal-error",
         detail="an unexpected error occurred; the request id identifies it in the service's log",
-        instance=request.url.path,
+        instance=path,
     )
     return problem_response(500, body)
+
+
+async def _unhandled_handler(request: Request, exc: Exception) -> JSONResponse:
+    return internal_error(request.method, request.url.path, exc)
 
 
 def install_problem_handlers(app: FastAPI) -> None:
