@@ -36,7 +36,7 @@ from softsig_service.config import Settings
 from softsig_service.registry.db import Registry
 from softsig_service.registry.idempotency import purge_expired_keys
 from softsig_service.services.compute import ComputePool
-from softsig_service.services.job_kinds import default_job_kinds, register_builtin_hands
+from softsig_service.services.job_kinds import default_job_kinds, object_digest_of, register_builtin_hands
 from softsig_service.services.jobs import JobKind, JobManager
 from softsig_service.services.observability import Metrics
 from softsig_service.services.retention import purge_old, retention_loop
@@ -66,6 +66,9 @@ def _startup(settings: Settings, registry: Registry) -> Any:
     from softsig_service.planning.planner import Planner, planning_model
 
     purge_expired_keys(registry)
+    filled = repo.fill_object_digests(registry, object_digest_of)
+    if filled:
+        log.info("gave %d stored signatures their object's digest", filled)
     done = register_builtin_hands(registry, settings)
     added = [n for n, what in done.items() if what == "added"]
     if added:

@@ -127,7 +127,7 @@ def validate(
             raise InvalidInput("unknown strategy", field="strategy", value=strategy, choices=STRATEGIES)
         nominal = opt.parse_object(obj, x, y, yaw)
         options: dict[str, Any] = dict(plan_option_fields(cs_method, criterion, placement))
-        model = opt.read_capture(capture, hand=hand, obj=obj, strategy=strategy)
+        model = opt.read_capture(capture, hand=hand, obj=nominal, strategy=strategy)
         if model is not None:
             options["capture"] = model
         recorder = _Recorder(frames, video, fps) if (frames is not None or video is not None) else None

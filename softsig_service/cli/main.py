@@ -65,9 +65,10 @@ def plan(
 
     with _errors():
         q = parse_floats(current_q, 6, "current_q") if current_q is not None else None
-        model = read_capture(capture, hand=hand, obj=obj, strategy=strategy)
+        target = _object_arg(obj, x, y, yaw)
+        model = read_capture(capture, hand=hand, obj=target, strategy=strategy)
         request = PlanRequest(
-            hand=hand, obj=_object_arg(obj, x, y, yaw), strategy=strategy,  # type: ignore[arg-type]
+            hand=hand, obj=target, strategy=strategy,  # type: ignore[arg-type]
             current_q=q, closing_axis=closing_axis,  # type: ignore[arg-type]
             sigma_r=sigma_r, sigma_t=sigma_t, capture=model,
             **plan_option_fields(cs_method, criterion, placement),  # type: ignore[arg-type]

@@ -95,14 +95,17 @@ CaptureOption = Annotated[
 ]
 
 
-def read_capture(path: Path | None, *, hand: str = "", obj: str = "", strategy: str = "") -> Any:
-    """The :class:`~softsig_service.signatures.capture.CaptureModel` in ``path``; without a path, for strategy R on
-    a built-in object, the model shipped with the hand (``hands/<name>/capture/<object>.json``), else None.
+def read_capture(path: Path | None, *, hand: str = "", obj: Any = None, strategy: str = "") -> Any:
+    """The :class:`~softsig_service.signatures.capture.CaptureModel` in ``path``; without a path, for strategy R,
+    the model shipped with the hand for an object of the shape of ``obj`` (a ``TableObject``; the lookup the
+    service makes too, :func:`~softsig_service.experiments.capture.shipped_capture_for`), else None.
     :class:`InvalidInput` naming ``capture`` when it cannot be read."""
-    if path is None and strategy == "R":
-        from softsig_service.experiments.capture import shipped_capture_path
+    if path is None and strategy == "R" and obj is not None:
+        from softsig_service.experiments.capture import shipped_capture_for
+        from softsig_service.hands.model import builtin_hand_names, builtin_hands_dir
 
-        path = shipped_capture_path(hand, obj)
+        folder = builtin_hands_dir() / hand if hand in builtin_hand_names() else Path(hand).parent
+        path = shipped_capture_for(folder, obj)
     if path is None:
         return None
     from softsig_service.signatures.capture import CaptureModel

@@ -14,6 +14,7 @@ Cost: ``n_theta * (2 * half_width / step + 1)^2 + holdout`` simulations (12 x 49
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import time
@@ -27,7 +28,8 @@ from typing import Any
 import numpy as np
 
 from softsig_service.config import Settings
-from softsig_service.errors import InvalidInput
+from softsig_service.errors import InvalidInput, SoftsigError
+from softsig_service.objects import TableObject
 from softsig_service.signatures.capture import (
     MIN_CAPTURE_STEP,
     CaptureModel,
@@ -119,6 +121,28 @@ def shipped_capture_path(hand_ref: str, object_name: str, settings: Settings | N
         return None
     path = folder / SHIPPED_DIR / f"{object_name}.json"
     return path if path.is_file() else None
+
+
+def shipped_capture_for(folder: Path, obj: TableObject) -> Path | None:
+    """The capture model shipped in a hand's folder (``folder/capture/*.json``) for an object of ``obj``'s shape,
+    size, mass and friction (``TableObject.shape_digest`` of the model's ``meta.object``; the pose does not
+    matter: a capture model is a function of the object's pose relative to the hand), or None. What both the CLI
+    and the service fall back on for strategy R when no capture model of the hand's revision is stored."""
+    for path in sorted((folder / SHIPPED_DIR).glob("*.json")):
+        if _shipped_digest(str(path), path.stat().st_mtime_ns) == obj.shape_digest:
+            return path
+    return None
+
+
+@functools.lru_cache(maxsize=256)
+def _shipped_digest(path: str, mtime_ns: int) -> str | None:
+    """The shape digest of the object a shipped capture model was built for (cached by file and modification)."""
+    from softsig_service.objects import object_from_json
+
+    try:
+        return object_from_json(json.loads(Path(path).read_text(encoding="utf-8"))["meta"]["object"]).shape_digest
+    except (OSError, ValueError, KeyError, TypeError, SoftsigError):
+        return None
 
 
 def matching_shipped_capture(

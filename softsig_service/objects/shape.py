@@ -39,6 +39,8 @@ from __future__ import annotations
 
 import copy
 import functools
+import hashlib
+import json
 import math
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -342,6 +344,15 @@ class TableObject:
         :meth:`to_json` of this object and of its moved copies)."""
         assert self.vertices is not None and self.faces is not None
         return {"vertices": self.vertices.tolist(), "faces": self.faces.tolist()}
+
+    @functools.cached_property
+    def shape_digest(self) -> str:
+        """SHA-256 (hex) of what the object is, wherever it stands: its JSON spec without pose and name (kind,
+        dimensions [m], mass [kg], friction). Two objects with the same digest grasp alike; a capture model or a
+        stiffness signature of one holds for the other."""
+        spec = {k: v for k, v in self.to_json().items() if k not in ("pose", "name")}
+        text = json.dumps(spec, sort_keys=True, separators=(",", ":"), allow_nan=False)
+        return hashlib.sha256(text.encode()).hexdigest()
 
     def to_json(self) -> dict[str, Any]:
         """The JSON spec of this object (see the module docstring); ``object_from_json`` reads it back."""

@@ -53,9 +53,11 @@ from softsig_service.registry.plans import PlanRecord, add_plan, delete_plan, ge
 from softsig_service.registry.signatures import (
     SignatureRecord,
     add_signature,
+    fill_object_digests,
     get_signature,
     latest_signature,
     list_signatures,
+    signature_of_object,
 )
 
 __all__ = [
@@ -87,6 +89,7 @@ __all__ = [
     "delete_hand",
     "delete_plan",
     "etag_matches",
+    "fill_object_digests",
     "find_key",
     "get_hand",
     "get_job",
@@ -111,6 +114,7 @@ __all__ = [
     "renew_lease",
     "replace_hand",
     "request_cancel",
+    "signature_of_object",
     "sync_builtin_hand",
     "update_job",
     "upgrade",

@@ -81,6 +81,7 @@ class SignatureRow(Base):
     __table_args__ = (
         UniqueConstraint("hand_id", "version", name="uq_signature_version"),
         Index("ix_signatures_hand_kind_version", "hand_id", "kind", "version"),
+        Index("ix_signatures_hand_kind_object", "hand_id", "kind", "object_digest", "hand_revision"),
     )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
@@ -90,6 +91,8 @@ class SignatureRow(Base):
     method: Mapped[str] = mapped_column(String(64), nullable=False)
     source: Mapped[str] = mapped_column(String(16), nullable=False)
     hand_revision: Mapped[int] = mapped_column(Integer, nullable=False)
+    object_digest: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    """``TableObject.shape_digest`` of the object a stiffness signature or capture model was computed on."""
     params: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False, default=dict)
     data: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, nullable=False, default=utcnow)

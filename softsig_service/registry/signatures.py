@@ -8,6 +8,7 @@ rolled-back insert rolls the counter back too, so versions are 1..N without gaps
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
@@ -35,6 +36,8 @@ class SignatureRecord:
     data: dict[str, Any]
     created_at: datetime
     hand_created_at: datetime
+    object_digest: str | None = None
+    """The shape digest of the object of a stiffness signature or capture model (``TableObject.shape_digest``)."""
 
     @property
     def etag(self) -> str:
@@ -81,8 +84,10 @@ def add_signature(
     params: dict[str, Any] | None = None,
     hand_revision: int | None = None,
     if_match: str | None = None,
+    object_digest: str | None = None,
 ) -> SignatureRecord:
-    """Store a new signature version of ``hand`` (the next number; never overwrites).
+    """Store a new signature version of ``hand`` (the next number; never overwrites), of the object whose shape
+    digest is ``object_digest`` (stiffness signatures and capture models).
 
     ``hand_revision`` is the revision the signature was computed from: if the hand was replaced meanwhile,
     :class:`Conflict`. ``if_match`` (optional) must match the ETag of the hand's latest version, else
@@ -122,6 +127,7 @@ def add_signature(
             method=method,
             source=source,
             hand_revision=row.revision,
+            object_digest=object_digest,
             params=params or {},
             data=data,
         )
@@ -155,6 +161,46 @@ def get_signature(reg: Registry, hand: str, version: int) -> SignatureRecord:
         if sig is None:
             raise NotFound("no such signature version", field="version", value=version)
         return _signature(sig, hand)
+
+
+def signature_of_object(
+    reg: Registry, hand: str, kind: str, object_digest: str
+) -> tuple[SignatureRecord | None, list[int]]:
+    """The newest ``kind`` signature of ``hand`` computed on its current revision for the object of shape digest
+    ``object_digest`` (None if there is none), and the older revisions of the hand that have one (ascending): one
+    indexed query each, nothing read that does not match."""
+    with reg.read() as s:
+        row = hand_row(s, hand)
+        match = (SignatureRow.hand_id == row.id) & (SignatureRow.kind == kind)
+        match &= SignatureRow.object_digest == object_digest
+        sig = s.scalars(
+            select(SignatureRow)
+            .where(match & (SignatureRow.hand_revision == row.revision))
+            .order_by(SignatureRow.version.desc())
+            .limit(1)
+        ).first()
+        if sig is not None:
+            return _signature(sig, hand), []
+        stale = s.scalars(select(SignatureRow.hand_revision).where(match).distinct()).all()
+        return None, sorted(int(r) for r in stale)
+
+
+def fill_object_digests(reg: Registry, digest_of: Callable[[dict[str, Any]], str | None]) -> int:
+    """Give every stiffness signature and capture model stored without an object digest the digest
+    ``digest_of(params["object"])`` (None: left without); returns how many were filled."""
+    with reg.write() as s:
+        rows = s.scalars(
+            select(SignatureRow).where(
+                SignatureRow.kind.in_(("stiffness", "capture")), SignatureRow.object_digest.is_(None)
+            )
+        ).all()
+        n = 0
+        for row in rows:
+            obj = (row.params or {}).get("object")
+            digest = digest_of(obj) if isinstance(obj, dict) else None
+            if digest is not None:
+                row.object_digest, n = digest, n + 1
+        return n
 
 
 def latest_signature(reg: Registry, hand: str, *, kind: str | None = None) -> SignatureRecord:

@@ -37,6 +37,7 @@ def _store(
         params=stored,
         hand_revision=params.get("hand_revision"),
         if_match=params.get("if_match"),
+        object_digest=object_digest_of(params["object"]),
     )
     return {
         "hand": rec.hand,
@@ -74,6 +75,17 @@ def default_job_kinds() -> dict[str, JobKind]:
         ),
     )
     return {k.name: k for k in kinds}
+
+
+def object_digest_of(obj_json: dict[str, Any]) -> str | None:
+    """The shape digest of a stored object's JSON (``TableObject.shape_digest``), None if it no longer parses."""
+    from softsig_service.errors import SoftsigError
+    from softsig_service.objects import object_from_json
+
+    try:
+        return object_from_json(obj_json).shape_digest
+    except SoftsigError:
+        return None
 
 
 def register_builtin_hands(registry: Registry, settings: Settings) -> dict[str, str]:

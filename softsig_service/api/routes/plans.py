@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import os
 import threading
 import uuid
+from pathlib import Path as FsPath
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Path, Query, Response
@@ -81,49 +83,57 @@ def _plan_if_ready(ctx: AppContext, body: PlanIn) -> tuple[repo.HandRef, dict[st
     return hand, make_plan(ctx, body, hand)
 
 
-def _shape(obj: dict[str, Any]) -> dict[str, Any]:
-    """An object's JSON in the parser's form (``TableObject.to_json``) without its pose and name."""
-    return {k: v for k, v in obj.items() if k not in ("pose", "name")}
+def capture_model(ctx: AppContext, hand: repo.HandRef, obj: TableObject, version: int | None) -> CaptureModel:
+    """The capture model strategy R plans with: signature ``version`` of ``hand``, which must be a capture model of
+    an object of the shape, size, mass and friction of ``obj`` (its shape digest) computed on the hand's current
+    revision; else the newest such one, found by one indexed query; else the model shipped in the hand's folder
+    for such an object (as the CLI does). :class:`InvalidInput` naming ``capture_version`` when there is none, or
+    only models of older revisions of the hand."""
+    from softsig_service.experiments.capture import shipped_capture_for
 
-
-def _without_pose(obj: dict[str, Any]) -> dict[str, Any]:
-    """A stored object's JSON in one form (built-in names resolved), without its pose and name."""
-    from softsig_service.objects import object_from_json
-
-    try:
-        return _shape(object_from_json(obj).to_json())
-    except InvalidInput:
-        return {}
-
-
-def capture_model(ctx: AppContext, hand: str, obj: TableObject, version: int | None) -> CaptureModel:
-    """The capture model strategy R plans with: signature ``version`` of ``hand`` (which must be a capture model
-    of an object of the shape, size, mass and friction of ``obj``), or the newest such one. :class:`InvalidInput`
-    naming ``capture_version`` when there is none."""
-    wanted = _shape(obj.to_json())
+    digest = obj.shape_digest
+    key: str
+    source: dict[str, Any] | FsPath  # the stored model's JSON, or the shipped model's file
     if version is not None:
         try:
-            rec = repo.get_signature(ctx.registry, hand, version)
+            rec = repo.get_signature(ctx.registry, hand.name, version)
         except NotFound:
             raise InvalidInput("no such signature version", field="capture_version", value=version) from None
-        if rec.kind != "capture" or _without_pose(rec.params.get("object", {})) != wanted:
+        if rec.kind != "capture" or rec.object_digest != digest:
             raise InvalidInput(
                 "not a capture model of this object (shape, size, mass and friction must match)",
                 field="capture_version", value=version,
             )  # fmt: skip
+        if rec.hand_revision != hand.revision:
+            raise InvalidInput(
+                f"capture model {version} was computed on revision {rec.hand_revision} of the hand, which is at "
+                f"revision {hand.revision} now: POST /v1/hands/{hand.name}/signatures/capture again",
+                field="capture_version", value=version,
+            )  # fmt: skip
+        key, source = rec.etag, rec.data
     else:
-        records, _ = repo.list_signatures(ctx.registry, hand, kind="capture", limit=1000)
-        found = [r for r in records if _without_pose(r.params.get("object", {})) == wanted]
-        if not found:
+        found, stale = repo.signature_of_object(ctx.registry, hand.name, "capture", digest)
+        shipped = shipped_capture_for(FsPath(hand.manifest_path).parent, obj) if found is None else None
+        if found is not None:  # a version's ETag names its content (hand, version, incarnation)
+            key, source = found.etag, found.data
+        elif shipped is not None:
+            key, source = f"{hand.token}:{shipped.name}:{shipped.stat().st_mtime_ns}", shipped
+        elif stale:
+            raise InvalidInput(
+                f"the hand's capture models of this object were computed on its revisions {stale}, not on its "
+                f"current revision {hand.revision}: POST /v1/hands/{hand.name}/signatures/capture again",
+                field="capture_version",
+            )  # fmt: skip
+        else:
             raise InvalidInput(
                 "strategy R needs the hand's capture model on this object: POST "
-                f"/v1/hands/{hand}/signatures/capture with it first", field="capture_version",
+                f"/v1/hands/{hand.name}/signatures/capture with it first", field="capture_version",
             )  # fmt: skip
-        rec = found[0]
     with _CAPTURES_LOCK:  # plans run in many threads
-        model = _CAPTURES.get(rec.etag)  # a version's ETag names its content (hand, version, incarnation)
+        model = _CAPTURES.get(key)
         if model is None:
-            model = _CAPTURES[rec.etag] = CaptureModel.from_json_dict(rec.data)
+            data = json.loads(source.read_text(encoding="utf-8")) if isinstance(source, FsPath) else source
+            model = _CAPTURES[key] = CaptureModel.from_json_dict(data)
             while len(_CAPTURES) > CAPTURES_KEPT:
                 del _CAPTURES[next(iter(_CAPTURES))]
     return model
@@ -151,7 +161,7 @@ def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRef) -> dict[str, An
     from softsig_service.planning.request import PlanRequest
 
     obj = object_from_json(object_json(body.object))
-    capture = capture_model(ctx, hand.name, obj, body.capture_version) if body.strategy == "R" else None
+    capture = capture_model(ctx, hand, obj, body.capture_version) if body.strategy == "R" else None
     options = body.model_dump(include=set(_planner_options()))
     request = PlanRequest(hand=hand.manifest_path, obj=obj, capture=capture, hand_revision=hand.token, **options)
     plan = ctx.planner.plan(request)  # thread-safe: per-thread solvers and collision worlds, no lock
