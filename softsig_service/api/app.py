@@ -29,6 +29,7 @@ from softsig_service import __version__
 from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
 from softsig_service.api.guard import AuthGateMiddleware
+from softsig_service.api.docs_page import install_docs
 from softsig_service.api.idempotency import IdempotencyMiddleware
 from softsig_service.api.logging import RequestContextMiddleware
 from softsig_service.api.problems import BodyLimitMiddleware, install_problem_handlers
@@ -131,6 +132,8 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
             metrics.process_exited()
 
     app = FastAPI(
+        docs_url=None,  # served from the package (docs_page), not from a CDN
+        redoc_url=None,
         title="softsig",
         version=__version__,
         description=DESCRIPTION,
@@ -144,6 +147,7 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
         ],
     )
     install_problem_handlers(app)
+    install_docs(app)
     from softsig_service.api.routes import hands, jobs, ops, plans, signatures
 
     routers = (ops.router, hands.router, signatures.router, plans.router, jobs.router)

@@ -179,6 +179,12 @@ class SoftsigClient:
         r = self.request("POST", f"/v1/hands/{hand}/signatures/stiffness", json={"object": dict(obj)})
         return JobOut.model_validate(r.json())
 
+    def compute_capture_signature(self, hand: str, obj: Mapping[str, Any], **grid: Any) -> JobOut:
+        """Start the capture-model job of ``hand`` on ``obj`` (strategy R; ``grid``: n_theta, half_width [m], step
+        [m], holdout, seed); wait with :meth:`wait_job`."""
+        r = self.request("POST", f"/v1/hands/{hand}/signatures/capture", json={"object": dict(obj), **grid})
+        return JobOut.model_validate(r.json())
+
     def upload_markers(
         self,
         hand: str,
@@ -226,14 +232,22 @@ class SoftsigClient:
         *,
         hand: str,
         object: Mapping[str, Any],
-        strategy: Literal["S", "C"],
+        strategy: Literal["S", "C", "R"],
         current_q: Sequence[float] | None = None,
+        sigma_r: float | None = None,
+        sigma_t: float | None = None,
+        capture_version: int | None = None,
         **options: Any,
     ) -> PlanOut:
-        """Plan a top grasp (``options``: closing_axis, approach_distance [m], margin [m], cs_method, store)."""
+        """Plan a top grasp. Strategy R: ``sigma_r`` [rad] and ``sigma_t`` [m], the standard deviations of the
+        object's yaw and position, and optionally ``capture_version`` (the capture model). ``options``:
+        closing_axis, approach_distance [m], margin [m], cs_method, cs_criterion, placement, store."""
         body: dict[str, Any] = {"hand": hand, "object": dict(object), "strategy": strategy, **options}
         if current_q is not None:
             body["current_q"] = list(current_q)
+        for name, value in (("sigma_r", sigma_r), ("sigma_t", sigma_t), ("capture_version", capture_version)):
+            if value is not None:
+                body[name] = value
         return PlanOut.model_validate(self.request("POST", "/v1/plans", json=body).json())
 
     def get_plan(self, plan_id: str) -> PlanOut:

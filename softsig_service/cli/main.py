@@ -26,6 +26,7 @@ from softsig_service.cli.options import errors_to_exit as _errors
 from softsig_service.cli.options import parse_object as _object_arg
 from softsig_service.cli.signatures import signature_app
 from softsig_service.config import Settings
+from softsig_service.errors import InvalidInput
 from softsig_service.experiments.campaign_spec import plan_option_fields
 
 app = typer.Typer(
@@ -160,6 +161,7 @@ def serve(
         settings = Settings(**overrides)
         configure_logging(settings.log_level)
         n = workers or settings.workers or default_workers()
+        _check_port(settings.host, settings.port)
         common: dict[str, Any] = {
             "host": settings.host, "port": settings.port, "log_config": None, "access_log": False,
             "timeout_graceful_shutdown": 10,
@@ -183,6 +185,26 @@ def serve(
         finally:
             if metrics_dir is not None:
                 shutil.rmtree(metrics_dir, ignore_errors=True)
+
+
+def _check_port(host: str, port: int) -> None:
+    """Refuse, naming ``port``, an address another process listens on (binding it as uvicorn does, then letting go)."""
+    import errno
+    import socket
+
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind((host, port))
+        except OSError as exc:
+            if exc.errno == errno.EADDRINUSE:
+                raise InvalidInput(
+                    f"port {port} on {host} is already in use (another service, or softsig already running: "
+                    f"`ss -ltnp 'sport = :{port}'` shows which); choose another with --port or SOFTSIG_PORT",
+                    field="port", value=port,
+                ) from None  # fmt: skip
+            raise InvalidInput(f"cannot listen on {host}:{port}: {exc.strerror}", field="host", value=host) from None
 
 
 def _serve_processes(config: Any) -> None:

@@ -24,9 +24,12 @@ def errors_to_exit() -> Iterator[None]:
 
 
 def emit(data: Any, as_json: bool, text: Callable[[], str | list[str]]) -> None:
-    """Print ``data`` as indented JSON with ``as_json``, else what ``text()`` gives (a string or lines)."""
+    """Print ``data`` as indented JSON with ``as_json`` (in the REST API's form: vectors as ``{"x", "y", "z"}``, no
+    NaN, no negative zero), else what ``text()`` gives (a string or lines)."""
     if as_json:
-        typer.echo(json.dumps(data, indent=2))
+        from softsig_service.services.serialize import to_jsonable, vectors_as_objects
+
+        typer.echo(json.dumps(vectors_as_objects(to_jsonable(data)), indent=2))
     else:
         out = text()
         typer.echo(out if isinstance(out, str) else "\n".join(out))

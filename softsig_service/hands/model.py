@@ -34,6 +34,7 @@ from softsig_service.hands.mimic import (
 )
 from softsig_service.hands.mjcf_source import confine_spec, load_mjcf_source
 from softsig_service.hands.mount_pose import apply_mount_pose, mount_transform
+from softsig_service.hands.posture_checks import check_posture
 from softsig_service.hands.synergy import add_synergy, synergy_controls, synergy_couplings
 from softsig_service.hands.xacro_expand import ExpandedUrdf, expand_xacro
 
@@ -237,6 +238,8 @@ def compile_hand(
     if isinstance(closure, SynergyClosure):
         actuators, open_ctrl, closed_ctrl, posture = synergy_controls(closure, coupled, model)
     else:
+        if isinstance(closure, PostureClosure):
+            check_posture(model, closure)
         actuators, open_ctrl, closed_ctrl, posture = _closure_controls(manifest, model)
     posture = mimic_posture(model, mimics, posture)
     return HandModel(

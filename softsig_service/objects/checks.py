@@ -28,6 +28,21 @@ def check_number(v: Any, field: str) -> float:
     return f
 
 
+MAX_ANGLE = 2.0 * math.pi
+"""[rad] the largest angle taken: a turn either way (a larger one is most likely in degrees by mistake)."""
+
+
+def check_angle(v: float, field: str) -> float:
+    """``v`` [rad] within [-2 pi, 2 pi], else :class:`InvalidInput` naming ``field``."""
+    if not -MAX_ANGLE <= v <= MAX_ANGLE:
+        raise InvalidInput(
+            f"an angle in radians within [-2 pi, 2 pi] (is {v:g} in degrees? that is {math.radians(v):.4g} rad)",
+            field=field,
+            value=v,
+        )
+    return v
+
+
 def check_positive(v: Any, field: str) -> float:
     f = check_number(v, field)
     if f <= 0.0:

@@ -13,6 +13,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
+from softsig_service.objects.checks import MAX_ANGLE
+
 MIN_LENGTH = 1e-4
 """Smallest length of an object [m] (0.1 mm): below it MuJoCo cannot simulate the object."""
 MIN_MASS = 1e-4
@@ -21,7 +23,7 @@ Length = Annotated[float, Field(ge=MIN_LENGTH, le=5.0, strict=True, description=
 Mass = Annotated[float, Field(ge=MIN_MASS, le=1000.0, strict=True, description="[kg]")]
 Coordinate = Annotated[float, Field(ge=-10.0, le=10.0, strict=True, description="[m]")]
 Index = Annotated[int, Field(ge=0, strict=True, description="0-based vertex index")]
-Angle = Annotated[float, Field(ge=-100.0, le=100.0, strict=True, description="[rad]")]
+Angle = Annotated[float, Field(ge=-MAX_ANGLE, le=MAX_ANGLE, strict=True, description="[rad], within [-2 pi, 2 pi]")]
 
 
 class Strict(BaseModel):

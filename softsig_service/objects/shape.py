@@ -51,7 +51,7 @@ from numpy.typing import NDArray
 from softsig_service.errors import InvalidInput
 from softsig_service.geometry.content_cache import ContentCache, content_digest
 from softsig_service.geometry.transforms import make_transform, rot_y, rot_z
-from softsig_service.objects.checks import check_mesh, check_number, check_positive, check_positive_list
+from softsig_service.objects.checks import check_angle, check_mesh, check_number, check_positive, check_positive_list
 from softsig_service.objects.footprint import convex_hull_2d, polygon_moments
 
 FloatArray = NDArray[np.float64]
@@ -153,6 +153,7 @@ class TableObject:
             object.__setattr__(self, f, check_positive(getattr(self, f), f"object.{f}"))
         for f in ("x", "y", "yaw", "table_height"):
             object.__setattr__(self, f, check_number(getattr(self, f), f"object.pose.{f}"))
+        check_angle(self.yaw, "object.pose.yaw")
         if self.standing and self.kind != "cylinder":
             raise InvalidInput("only a cylinder can be standing", field="object.standing", value=self.kind)
         if self.kind == "mesh":

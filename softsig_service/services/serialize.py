@@ -9,8 +9,8 @@ from typing import Any
 def to_jsonable(value: Any) -> Any:
     """``value`` with NumPy scalars and arrays made plain and non-finite floats made ``None`` (valid JSON)."""
     t = type(value)  # the plain types first, by exact type (a plan's JSON is mostly these)
-    if t is float:
-        return value if math.isfinite(value) else None
+    if t is float:  # + 0.0 makes -0.0 plain 0.0 (a quaternion's "w": -0.0 is the same rotation, and reads oddly)
+        return value + 0.0 if math.isfinite(value) else None
     if t is str or t is int or t is bool or value is None:
         return value
     if isinstance(value, dict):
@@ -20,14 +20,14 @@ def to_jsonable(value: Any) -> Any:
     if isinstance(value, bool) or value is None or isinstance(value, str | int):
         return value
     if isinstance(value, float):
-        return value if math.isfinite(value) else None
+        return float(value) + 0.0 if math.isfinite(value) else None
     tolist = getattr(value, "tolist", None)  # NumPy arrays and scalars
     if callable(tolist):
         return to_jsonable(tolist())
     return str(value)
 
 
-VECTOR_KEYS = frozenset({"axis", "anchor", "center", "direction", "position", "normal", "force"})
+VECTOR_KEYS = frozenset({"axis", "anchor", "center", "direction", "position", "normal", "force", "origin"})
 """Keys whose value, when a list of three numbers, is a 3-D vector (an axis, a point [m], a force [N])."""
 VECTOR_ROW_KEYS = frozenset({"axes", "directions"})
 """Keys whose value, when a list of lists of three numbers, is a list of 3-D unit vectors."""
@@ -37,17 +37,23 @@ def _is_triple(value: Any) -> bool:
     return isinstance(value, list) and len(value) == 3 and all(isinstance(v, int | float) for v in value)
 
 
+FRAME_KEYS = frozenset({"x", "y", "z"})
+"""In a frame (a dict that also holds ``origin``), the keys of its unit axes."""
+
+
 def vectors_as_objects(value: Any) -> Any:
     """``value`` (plain JSON) with every 3-D vector under :data:`VECTOR_KEYS` (and every row of a list under
-    :data:`VECTOR_ROW_KEYS`) written as ``{"x", "y", "z"}``, the REST API's one form of a vector. Lists that
-    are not triples (joint positions, per-axis values, matrices) are left as they are."""
+    :data:`VECTOR_ROW_KEYS`, and the axes of a frame, :data:`FRAME_KEYS` beside an ``origin``) written as
+    ``{"x", "y", "z"}``, the REST API's one form of a vector, and CLI's ``--json``. Lists that are not triples
+    (joint positions, per-axis values, matrices) are left as they are."""
     t = type(value)  # plain scalars first, by exact type (most of a plan's JSON)
     if t is float or t is int or t is str or t is bool or value is None:
         return value
     if isinstance(value, dict):
         out: dict[str, Any] = {}
+        frame = "origin" in value
         for k, v in value.items():
-            if k in VECTOR_KEYS and _is_triple(v):
+            if (k in VECTOR_KEYS or (frame and k in FRAME_KEYS)) and _is_triple(v):
                 out[k] = {"x": v[0], "y": v[1], "z": v[2]}
             elif k in VECTOR_ROW_KEYS and isinstance(v, list) and v and all(_is_triple(r) for r in v):
                 out[k] = [{"x": r[0], "y": r[1], "z": r[2]} for r in v]

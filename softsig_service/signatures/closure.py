@@ -247,7 +247,9 @@ def mesh_closure_signature(surface: ArrayLike, *, source: MeshSource = "surface"
 
     ``source`` ("surface" or "reference_points") only labels the result and the error fields. Raises
     :class:`InvalidTrajectory` when the initial points do not span 3-D (the affine map is then
-    undetermined) or the fitted map squashes a direction to zero (a stretch of 0 has no logarithm).
+    undetermined) or the fitted map squashes a direction to zero (a stretch of 0 has no logarithm). A map that
+    mirrors the points (det F < 0) is flagged: a warning in ``extras["warnings"]``, and ``signed_stretches``
+    gives the axis whose points crossed through zero its negative stretch.
     """
     if source not in ("surface", "reference_points"):
         raise InvalidInput("unknown mesh source", field="source", value=source, choices=("surface", "reference_points"))
@@ -274,6 +276,18 @@ def mesh_closure_signature(surface: ArrayLike, *, source: MeshSource = "surface"
             field=f"{field_name}[{s.shape[0] - 1}]",
             value=[float(v) for v in stretch],
         )
+    det = float(np.linalg.det(f))
+    signed = stretch.copy()
+    notes: list[str] = []
+    if det < 0.0:  # F = (W D)(D S) V^T, D = diag(1, 1, -1): a proper rotation and one stretch through zero
+        signed[-1] = -signed[-1]
+        w = w @ np.diag([1.0, 1.0, -1.0])
+        notes.append(
+            f"the fitted affine map mirrors the points (det F = {det:.3g} < 0): along one axis the points crossed "
+            "through each other (fingers closing past one another), or two points' labels are swapped, or the "
+            "frames differ in handedness; that axis's deformation (the log of |stretch|) understates its change "
+            "(signed_stretches has its sign)"
+        )
     rot = w @ vt
     cos_angle = float(np.clip((np.trace(rot) - 1.0) / 2.0, -1.0, 1.0))
     return _assemble(
@@ -282,13 +296,14 @@ def mesh_closure_signature(surface: ArrayLike, *, source: MeshSource = "surface"
         directions=vt,  # rows: eigenvectors of U = V S V^T
         deformation=np.log(stretch),
         anchor=m0,
-        per_axis={"stretches": stretch},
+        per_axis={"stretches": stretch, "signed_stretches": signed},
         resolution=MESH_RESOLUTION,
+        notes=notes,
         extras={
             "magnitude_unit": "1",
             "fit_residual_rms": float(np.sqrt(np.mean(resid**2))),
             "fit_residual_max": float(resid.max()),
-            "det_F": float(np.linalg.det(f)),
+            "det_F": det,
             "rotation_angle": math.acos(cos_angle),
             "affine_matrix": [float_list(row) for row in f],
             "affine_offset": float_list(b),
@@ -327,10 +342,11 @@ def _assemble(
     final_ellipsoid: Ellipsoid | None = None,
     eligible: NDArray[np.bool_] | None = None,
     close_pairs: Sequence[tuple[int, int]] = (),
+    notes: Sequence[str] = (),
 ) -> ClosureSignature:
     """Order the axes by |deformation| descending (axes not ``eligible`` for election after the others), apply
     the sign rule and build the signature. ``close_pairs`` (indices into ``directions``) are reported as
-    ill-defined, with the indices they get in the ordered ``axes``."""
+    ill-defined, with the indices they get in the ordered ``axes``; ``notes`` are warnings of the method itself."""
     ok = np.ones(len(deformation), dtype=bool) if eligible is None else np.asarray(eligible, dtype=bool)
     order = np.lexsort((-np.abs(deformation), ~ok))  # eligible first, then |deformation| descending
     axes = orient_axes(directions[order])
@@ -343,7 +359,7 @@ def _assemble(
         vals = values[order] * flips if key == "centre_drift" else values[order]
         all_extras[key] = float_list(vals)
     rank = {int(k): i for i, k in enumerate(order)}
-    warnings: list[str] = []
+    warnings: list[str] = list(notes)
     if not ok.all():
         all_extras["lifted_axes"] = sorted(rank[int(k)] for k in np.flatnonzero(~ok))
         warnings.append("the open points are coplanar or collinear: axes that exist only by lifting are not elected")

@@ -91,8 +91,9 @@ class ClosureSignature:
         ``half_width_initial`` [m], ``half_width_final`` [m] (all per row of axes, whichever the criterion),
         ``lifted_epsilon`` {initial, final} [m], ``solver`` {initial, final: {iterations, converged, gap}};
         pca: ``explained_variance_ratio`` (per row of axes), ``rms_displacement`` [m], ``n_displacements``;
-        mesh: ``stretches`` (per row of axes), ``fit_residual_rms`` [m], ``fit_residual_max`` [m], ``det_F``,
-        ``rotation_angle`` [rad], ``affine_matrix`` (3 rows), ``affine_offset`` [m].
+        mesh: ``stretches`` and ``signed_stretches`` (per row of axes; one negative when ``det_F`` < 0, flagged in
+        ``warnings``), ``fit_residual_rms`` [m], ``fit_residual_max`` [m], ``det_F``, ``rotation_angle`` [rad] (of
+        the proper rotation), ``affine_matrix`` (3 rows), ``affine_offset`` [m].
         """
         out: dict[str, Any] = {
             "method": self.method,

@@ -78,6 +78,9 @@ def test_serve_drive_restart(tmp_path: Path) -> None:
         assert plan.success and plan.id is not None and plan.grasp_pose is not None
         png = api.plan_image(plan.id)
         assert png.startswith(b"\x89PNG")
+        robust = api.plan(hand="parallel_gripper", object={"kind": "builtin", "name": "box"}, strategy="R",
+                          sigma_r=0.1, sigma_t=0.01, store=False)  # fmt: skip
+        assert robust.strategy == "R" and robust.quality is not None
         with pytest.raises(ApiError) as err:
             api.plan(hand="served_gripper", object={"kind": "builtin", "name": "box"}, strategy="Z")  # type: ignore[arg-type]
         assert err.value.status == 422 and err.value.problem.field == "strategy"
@@ -114,3 +117,22 @@ def test_serve_drive_restart(tmp_path: Path) -> None:
         with pytest.raises(ApiError) as err:
             api.hand("served_gripper")
         assert err.value.status == 404
+
+
+def test_a_port_in_use_is_named(tmp_path: Path) -> None:
+    """``softsig serve`` on a port another process listens on ends at once with a message naming the port."""
+    import socket
+    import subprocess
+    import sys
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        env = {**os.environ, "SOFTSIG_DATA_DIR": str(tmp_path), "SOFTSIG_WARM_PLANNER": "false"}
+        res = subprocess.run(
+            [sys.executable, "-m", "softsig_service.cli", "serve", "--port", str(port), "--workers", "1"],
+            capture_output=True, text=True, timeout=120, env=env,
+        )  # fmt: skip
+    assert res.returncode == 2, (res.stdout, res.stderr)
+    assert f"port {port} on 127.0.0.1 is already in use" in res.stderr and "--port" in res.stderr, res.stderr

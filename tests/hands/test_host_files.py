@@ -64,7 +64,13 @@ def _hand_with(folder: Path, snippet: str, where: str) -> Path:
         xml = xml.replace("<mujoco>", "<mujoco>" + snippet)
     (folder / "hand.xml").write_text(xml)
     (folder / "hand.toml").write_text(
-        POSTURE.format(model="hand.xml", mount="mount", points="", open="j1 = 0.0", closed="j1 = -0.8")
+        POSTURE.format(
+            model="hand.xml",
+            mount="mount",
+            points="",
+            open="j1 = 0.0, j2 = 0.0, j3 = 0.0",
+            closed="j1 = -0.8, j2 = -0.8, j3 = -0.8",
+        )
     )
     return folder / "hand.toml"
 

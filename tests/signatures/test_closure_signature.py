@@ -674,6 +674,35 @@ def test_mesh_needs_initial_points_that_span_3d() -> None:
     assert info.value.field == "positions[0]"
 
 
+@given(
+    quaternions,
+    st.tuples(*[st.floats(0.5, 1.5)] * 3),
+    st.integers(0, 2),
+)
+@settings(max_examples=40, deadline=None)
+def test_mesh_refuses_a_mirrored_closure_and_keeps_a_proper_one(
+    q: tuple[float, float, float, float], scales: tuple[float, float, float], mirrored_axis: int
+) -> None:
+    """x_T = x_0 R diag(s) (det > 0) is a deformation; the same with one axis flipped (det < 0) mirrors the points:
+    flagged with a warning and a negative signed stretch, never reported as plain deformations with no word."""
+    frame = rotation(q)
+    x0 = open_hand(np.eye(3))
+    stretch = np.diag(scales) @ frame
+    proper = np.stack([x0, x0 @ stretch.T])
+    cs = mesh_closure_signature(proper, source="reference_points")
+    assert cs.extras["det_F"] > 0 and "warnings" not in cs.extras
+    assert cs.extras["signed_stretches"] == cs.extras["stretches"]
+    flip = np.eye(3)
+    flip[mirrored_axis, mirrored_axis] = -1.0
+    mirror = np.stack([x0, x0 @ (flip @ stretch).T])
+    flagged = mesh_closure_signature(mirror, source="reference_points")
+    assert flagged.extras["det_F"] < 0 and any("mirrors" in w for w in flagged.extras["warnings"])
+    signed = flagged.extras["signed_stretches"]
+    assert sum(v < 0 for v in signed) == 1
+    assert np.allclose(np.abs(signed), flagged.extras["stretches"])
+    assert abs(flagged.extras["rotation_angle"]) <= math.pi
+
+
 # ------------------------------------------------------------------------------------------------------- plot
 
 

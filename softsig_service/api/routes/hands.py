@@ -38,6 +38,7 @@ from softsig_service.hands.archive import read_archive
 from softsig_service.hands.assets import check_relative_path
 from softsig_service.hands.manifest import HandManifest, manifest_from_dict
 from softsig_service.hands.xacro_expand import CACHE_DIR
+from softsig_service.services.serialize import to_jsonable, vectors_as_objects
 from softsig_service.services.tasks import inspect_hand
 
 router = APIRouter(prefix="/v1", tags=["hands"])
@@ -75,7 +76,7 @@ def hand_summary(record: repo.HandRecord) -> dict[str, Any]:
 
 def hand_out(record: repo.HandRecord) -> dict[str, Any]:
     """The JSON of :class:`HandOut` for a record."""
-    return {**hand_summary(record), "info": record.info, "files": record.files}
+    return {**hand_summary(record), "info": vectors_as_objects(to_jsonable(record.info)), "files": record.files}
 
 
 async def _read_limited(upload: UploadFile, limit: int, field: str) -> bytes:
