@@ -28,8 +28,8 @@ from starlette.concurrency import run_in_threadpool
 from softsig_service import __version__
 from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
-from softsig_service.api.guard import AuthGateMiddleware
 from softsig_service.api.docs_page import install_docs
+from softsig_service.api.guard import AuthGateMiddleware
 from softsig_service.api.idempotency import IdempotencyMiddleware
 from softsig_service.api.logging import RequestContextMiddleware
 from softsig_service.api.problems import BodyLimitMiddleware, install_problem_handlers

@@ -62,6 +62,9 @@ def _hand_lines(info: dict[str, Any]) -> list[str]:
         lines.append(f"  expanded URDF sha256 {info['expanded_urdf']['sha256']}")
     if info["mimics"]:
         lines.append(f"  mimic couplings: {len(info['mimics'])}")
+    if info["excluded_pairs"]:
+        lines.append(f"  self-collision pairs not checked: {len(info['excluded_pairs'])}")
+        lines += [f"    {p['body1']} / {p['body2']}: {p['reason']} ({p['detail']})" for p in info["excluded_pairs"]]
     lines.append("  reference points: " + ", ".join(p["name"] for p in info["reference_points"]))
     lines.append(f"  closure: {info['closure']}")
     return lines

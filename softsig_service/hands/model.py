@@ -35,6 +35,7 @@ from softsig_service.hands.mimic import (
 from softsig_service.hands.mjcf_source import confine_spec, load_mjcf_source
 from softsig_service.hands.mount_pose import apply_mount_pose, mount_transform
 from softsig_service.hands.posture_checks import check_posture
+from softsig_service.hands.self_collision import ExcludedPair, add_excludes, excluded_pairs
 from softsig_service.hands.synergy import add_synergy, synergy_controls, synergy_couplings
 from softsig_service.hands.xacro_expand import ExpandedUrdf, expand_xacro
 
@@ -81,6 +82,9 @@ class HandModel:
     """For a synergy closure: the joints s drives (``q = multiplier * s + offset``)."""
     expanded: ExpandedUrdf | None = None
     """For a xacro model: the expanded URDF (its SHA-256 is stored with the hand)."""
+    excluded: tuple[ExcludedPair, ...] = ()
+    """Body pairs whose contacts are not checked, with the reason for each
+    (:mod:`softsig_service.hands.self_collision`)."""
 
     @property
     def name(self) -> str:
@@ -184,12 +188,34 @@ def compile_hand(
     folder: Path,
     limits: ModelLimits,
     edit: Callable[[mujoco.MjSpec], None] | None = None,
+    excluded: tuple[ExcludedPair, ...] | None = None,
 ) -> HandModel:
     """Build the hand's ``MjSpec``, add posture servos, compile, check limits and resolve every name.
 
     ``edit`` may add to the spec before compiling (an obstacle, an object); the result is not cached.
+    ``excluded`` are the self-collision pairs not to check; without them they are found on the hand compiled
+    alone (:func:`~softsig_service.hands.self_collision.excluded_pairs`), which costs one more compile when
+    there are any or when ``edit`` is given (pass ``hand.excluded`` of a loaded hand to skip that).
     """
+    if excluded is not None:
+        return _build_hand(manifest, folder, limits, edit, excluded)
+    plain = _build_hand(manifest, folder, limits, None, ())
     src = load_spec(manifest, folder, limits)
+    found = excluded_pairs(plain.model, plain.posture_qpos, src.urdf_xml, folder, limits)
+    if not found and edit is None:
+        return plain
+    return _build_hand(manifest, folder, limits, edit, found, src)
+
+
+def _build_hand(
+    manifest: HandManifest,
+    folder: Path,
+    limits: ModelLimits,
+    edit: Callable[[mujoco.MjSpec], None] | None,
+    excluded: tuple[ExcludedPair, ...],
+    src: SpecSource | None = None,
+) -> HandModel:
+    src = src or load_spec(manifest, folder, limits)
     spec = src.spec
     T_MH = mount_transform(manifest.mount_pose)
     apply_mount_pose(spec, manifest.mount, T_MH)
@@ -197,8 +223,7 @@ def compile_hand(
     mimics = mimic_couplings(src.urdf_xml) if src.urdf_xml is not None else {}
     coupled = synergy_couplings(closure, mimics) if isinstance(closure, SynergyClosure) else []
     add_mimic_equalities(spec, mimics, skip={c.joint for c in coupled}, timestep=manifest.simulation.timestep)
-    if src.urdf_xml is not None:
-        _exclude_mount_children(spec, manifest.mount)
+    add_excludes(spec, excluded)
     if edit is not None:
         edit(spec)
     sim = manifest.simulation
@@ -256,19 +281,8 @@ def compile_hand(
         mimics=tuple(mimics.values()),
         synergy=tuple(coupled),
         expanded=src.expanded,
+        excluded=excluded,
     )
-
-
-def _exclude_mount_children(spec: mujoco.MjSpec, mount: str) -> None:
-    """URDF links next to each other do not collide (as ROS tools treat adjacent links). MuJoCo skips
-    parent-child pairs except where the parent is welded to the world, as the mount body is: exclude those."""
-    body = spec.body(mount)
-    if body is None:
-        return
-    for child in body.bodies:
-        exclude = spec.add_exclude()
-        exclude.bodyname1 = mount
-        exclude.bodyname2 = child.name
 
 
 def _names(model: mujoco.MjModel, kind: Literal["body", "site", "actuator", "joint"]) -> list[str]:

@@ -26,7 +26,9 @@ def fingertip_spread(positions: NDArray[np.float64], names: tuple[str, ...]) -> 
 def hand_info(hand: HandModel) -> dict[str, Any]:
     """Static facts of a hand: manifest fields, model statistics, its reference points, the hand frame in the
     mount body's frame (``hand_frame``: origin [m] and unit axes), the URDF's mimic couplings, the joints a
-    synergy closure drives, and for a xacro model the SHA-256 of its expanded URDF."""
+    synergy closure drives, the self-collision pairs left unchecked (``excluded_pairs``: body1, body2, reason
+    and detail; :mod:`softsig_service.hands.self_collision`), and for a xacro model the SHA-256 of its expanded
+    URDF."""
     m = hand.model
     man = hand.manifest
     joint_types = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
@@ -60,6 +62,9 @@ def hand_info(hand: HandModel) -> dict[str, Any]:
             {"joint": c.joint, "root": c.root, "multiplier": c.multiplier, "offset": c.offset} for c in hand.mimics
         ],
         "synergy": [{"joint": c.joint, "multiplier": c.multiplier, "offset": c.offset} for c in hand.synergy],
+        "excluded_pairs": [
+            {"body1": p.body1, "body2": p.body2, "reason": p.reason, "detail": p.detail} for p in hand.excluded
+        ],
         "expanded_urdf": None
         if hand.expanded is None
         else {

@@ -87,7 +87,9 @@ def _add_object(spec: mujoco.MjSpec, obj: TableObject) -> None:
 def compile_with_object(hand: HandModel, obj: TableObject, settings: Settings | None = None) -> HandModel:
     """The hand recompiled with ``obj`` as a free body named :data:`OBJECT_BODY` (not cached)."""
     limits = (settings or default_settings()).limits
-    return compile_hand(hand.manifest, hand.folder, limits, edit=lambda spec: _add_object(spec, obj))
+    return compile_hand(
+        hand.manifest, hand.folder, limits, edit=lambda spec: _add_object(spec, obj), excluded=hand.excluded
+    )
 
 
 def placement_target(hand: HandModel, *, duration: float | None = None) -> tuple[FloatArray, FloatArray]:

@@ -54,7 +54,7 @@ from softsig_service.arm.ur5 import FLANGE_FRAME, JOINT_NAMES
 from softsig_service.config import Settings, default_settings
 from softsig_service.errors import InvalidHandModel
 from softsig_service.hands.manifest import load_manifest
-from softsig_service.hands.model import HandModel, compile_hand, resolve_hand_path
+from softsig_service.hands.model import HandModel, compile_hand, load_hand, resolve_hand_path
 from softsig_service.objects import TableObject
 from softsig_service.simulation.object_geom import set_object_shape
 from softsig_service.simulation.scene_model import (
@@ -126,7 +126,8 @@ def _hand_spec(hand_ref: str, settings: Settings) -> tuple[mujoco.MjSpec, HandMo
     path = resolve_hand_path(hand_ref, settings)
     manifest = load_manifest(path, max_bytes=settings.limits.max_model_bytes)
     captured: list[mujoco.MjSpec] = []
-    hand = compile_hand(manifest, path.parent, settings.limits, edit=captured.append)
+    excluded = load_hand(hand_ref, settings).excluded  # the self-collision pairs found once per hand load
+    hand = compile_hand(manifest, path.parent, settings.limits, edit=captured.append, excluded=excluded)
     return captured[0], hand
 
 
