@@ -77,7 +77,8 @@ def test_xacro_hand_with_mimics_round_trips_through_the_registry(api: TestClient
     mimics = {m["joint"]: (m["root"], m["multiplier"], m["offset"]) for m in info["mimics"]}
     assert mimics["f1_dist"] == ("synergy_joint", pytest.approx(0.3), 0.0)  # chain f1_dist -> f1_prox -> root
     assert mimics["thumb_dist"] == ("synergy_joint", pytest.approx(0.15), pytest.approx(0.05))
-    assert info["hand_frame"]["z"] == pytest.approx([1.0, 0.0, 0.0], abs=1e-12)
+    z = info["hand_frame"]["z"]  # a frame's axes are vectors, {x, y, z}, as everywhere on the wire
+    assert [z["x"], z["y"], z["z"]] == pytest.approx([1.0, 0.0, 0.0], abs=1e-12)
     assert {s["joint"] for s in info["synergy"]} == {"synergy_joint", *mimics}
     # like a built-in hand: a closure signature, then a plan with strategy C
     cs = api.post("/v1/hands/mini_hand/signatures/closure", json={}, headers=AUTH)
