@@ -69,6 +69,35 @@ class Quality(Out):
     expected_capture: float | None = None
 
 
+class Timing(Out):
+    """Wall time of the planner [s], by part."""
+
+    strategy: float = Field(description="the strategy's pose search (S, C: alignment; R: the robust search)")
+    ik: float = Field(description="inverse kinematics of the grasp and pre-grasp")
+    collision: float = Field(description="collision checks along the approach")
+    total: float = Field(description="the whole plan")
+
+
+class ClosureCommand(Out):
+    """The hand's closure (moveit_msgs/Grasp's grasp posture): actuator controls ramped from ``open`` to
+    ``closed`` over ``duration`` [s] (units of each actuator: [rad], [m] or a synergy's [0, 1])."""
+
+    actuators: list[str]
+    open: list[float]
+    closed: list[float]
+    duration: float
+
+
+class Solver(Out):
+    """How the plan was found: the strategy's ``status`` and ``iterations``, and the options it ran with."""
+
+    status: str
+    iterations: int | None = None
+    cs_method: CsMethod
+    cs_criterion: ClosureCriterion
+    placement: Literal["open_centre", "grasp_centre", "previous"]
+
+
 class PlanOut(Out):
     """A grasp plan; maps one to one onto moveit_msgs/Grasp (docs/planning.md). ``grasp_pose`` and
     ``pre_grasp_pose`` are poses of the flange ``tool0`` in ``base_link``; joints [rad]; timing [s]."""
@@ -90,12 +119,11 @@ class PlanOut(Out):
     pre_grasp_pose: PoseOut | None = None
     approach: Approach
     quality: Quality
-    timing: dict[str, float] = Field(description="wall time [s] by part: strategy, ik, collision, total")
-    closure: dict[str, Any] = Field(default_factory=dict, description="the hand's closure command (grasp posture)")
-    solver: dict[str, Any] = Field(
-        default_factory=dict, description="status and iterations of the strategy, CS method, criterion, placement"
-    )
+    timing: Timing
+    closure: ClosureCommand
+    solver: Solver
     links: dict[str, str] = Field(default_factory=dict, description="URLs of the stored plan and its image")
+    hand_revision: int = Field(description="the registry's revision of the hand the plan was made with")
 
 
 class PlanSummary(Out):

@@ -33,9 +33,11 @@ JointAngle = Annotated[float, Field(ge=-7.0, le=7.0, strict=True, description="[
 
 
 class Out(BaseModel):
-    """Base of response bodies: extra keys pass through."""
+    """Base of response bodies: closed, every key declared (an undeclared key is a bug of the service: the
+    response fails its own model, and ``tests/api/test_api_contract.py`` finds it). A free-form part of an answer
+    (a hand's ``info``, a signature's JSON, a job's ``result``) is declared as an object of its own."""
 
-    model_config = ConfigDict(extra="allow")
+    model_config = ConfigDict(extra="forbid")
 
 
 # ----------------------------------------------------------------------------------------------------------

@@ -10,8 +10,6 @@ is not an error: the plan has ``success: false`` and machine-readable ``reasons`
 
 from __future__ import annotations
 
-import dataclasses
-import functools
 import json
 import os
 import threading
@@ -145,13 +143,16 @@ _CAPTURES: dict[str, CaptureModel] = {}
 _CAPTURES_LOCK = threading.Lock()
 
 
-@functools.cache
-def _planner_options() -> frozenset[str]:
-    """The fields of a plan request that the planner takes as they are (its other inputs, the hand, the object and
-    the capture model, are resolved from the request first)."""
-    from softsig_service.planning.request import PlanRequest
-
-    return frozenset(f.name for f in dataclasses.fields(PlanRequest)) & set(PlanIn.model_fields) - {"hand"}
+PLANNER_FIELDS = (
+    "strategy", "sigma_r", "sigma_t", "current_q", "closing_axis", "approach_distance", "margin", "cs_method",
+    "cs_criterion", "placement",
+)  # fmt: skip
+"""The fields of a plan request (``PlanIn``) that reach the planner (``PlanRequest``) as they are, by the same
+name. The others are resolved by the route first: ``hand`` (the registry's manifest and revision), ``object`` (parsed),
+``capture_version`` (the capture model), or are the route's own (``store``); ``tests/api/test_api_contract.py``
+keeps the two lists complete and apart."""
+ROUTE_FIELDS = ("hand", "object", "capture_version", "store")
+"""The fields of ``PlanIn`` the route resolves or keeps for itself (see :data:`PLANNER_FIELDS`)."""
 
 
 def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRef) -> dict[str, Any]:
@@ -162,7 +163,7 @@ def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRef) -> dict[str, An
 
     obj = object_from_json(object_json(body.object))
     capture = capture_model(ctx, hand, obj, body.capture_version) if body.strategy == "R" else None
-    options = body.model_dump(include=set(_planner_options()))
+    options = body.model_dump(include=set(PLANNER_FIELDS))
     request = PlanRequest(hand=hand.manifest_path, obj=obj, capture=capture, hand_revision=hand.token, **options)
     plan = ctx.planner.plan(request)  # thread-safe: per-thread solvers and collision worlds, no lock
     ctx.metrics.plan_seconds.labels(body.strategy).observe(plan.timing.get("total", 0.0))
