@@ -3,6 +3,7 @@ the jobs, and a job whose process is killed (``kill -9``) completes in the other
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import socket
@@ -178,3 +179,86 @@ def test_metrics_of_several_processes_count_together(tmp_path: Path) -> None:
             except subprocess.TimeoutExpired:
                 proc.kill()
                 proc.wait(10)
+
+
+def _plans_served(metrics_dir: Path) -> dict[str, float]:
+    """By process id: how many ``POST /v1/plans`` it answered 200 (its counter file of the multiprocess metrics)."""
+    from prometheus_client.mmap_dict import MmapedDict
+
+    out: dict[str, float] = {}
+    for path in metrics_dir.glob("counter_*.db"):
+        d = MmapedDict(str(path), read_mode=True)
+        try:
+            for key, value, *_ in d.read_all_values():
+                _, name, labels, _help = json.loads(key)
+                if (
+                    name == "softsig_http_requests_total"
+                    and labels.get("route") == "/v1/plans"
+                    and (labels.get("status") == "200")
+                ):
+                    pid = path.stem.rsplit("_", 1)[-1]
+                    out[pid] = out.get(pid, 0.0) + value
+        finally:
+            d.close()
+    return out
+
+
+def test_a_replaced_hand_is_planned_anew_by_every_worker(tmp_path: Path) -> None:
+    """``softsig serve --workers 2``: plans of a hand warm both processes' caches; the hand replaced (PUT) through
+    one of them, then deleted and re-created, every plan from either process equals a fresh process's (1e-9)."""
+    from api_helpers import gripper_files, upload
+    from test_api_hand_changes import PLAN, _close, _fresh_plan, _long_jaws
+
+    short, long = gripper_files("g"), _long_jaws(gripper_files("g"))
+    expected_long, expected_short = _fresh_plan(tmp_path / "f1", long), _fresh_plan(tmp_path / "f2", short)
+    metrics_dir = tmp_path / "metrics"
+    metrics_dir.mkdir()
+    port = _free_port()
+    env = {**os.environ, "SOFTSIG_DATA_DIR": str(tmp_path / "data"), "SOFTSIG_API_KEYS": "k",
+           "SOFTSIG_WARM_PLANNER": "false", "PROMETHEUS_MULTIPROC_DIR": str(metrics_dir)}  # fmt: skip
+    url = f"http://127.0.0.1:{port}"
+
+    def plans(n: int) -> list[dict[str, Any]]:  # a new connection each: both processes answer some
+        out = []
+        for _ in range(n):
+            r = httpx.post(f"{url}/v1/plans", json=PLAN, headers=KEY, timeout=120)
+            assert r.status_code == 200, r.text
+            out.append(r.json())
+        return out
+
+    with (tmp_path / "serve.log").open("w") as log:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "softsig_service.cli", "serve", "--workers", "2", "--port", str(port)],
+            env=env, stdout=log, stderr=subprocess.STDOUT,
+        )  # fmt: skip
+        try:
+            wait_for(lambda: proc.poll() is None and _ready(url), timeout=180, poll=0.5)
+            r = httpx.post(f"{url}/v1/hands", files=upload(short), headers=KEY, timeout=60)
+            assert r.status_code == 201, r.text
+            assert all(_close(p, expected_short) for p in plans(16))
+            before = _plans_served(metrics_dir)
+            assert len(before) == 2, f"one process planned every request: {before}"
+            put = httpx.put(f"{url}/v1/hands/g", files=upload(long), headers={**KEY, "If-Match": r.headers["etag"]},
+                            timeout=60)  # fmt: skip
+            assert put.status_code == 200, put.text
+            assert all(p["hand_revision"] == 2 and _close(p, expected_long) for p in plans(16))
+            after = _plans_served(metrics_dir)
+            assert all(after[pid] > before[pid] for pid in before), (before, after)
+            d = httpx.delete(f"{url}/v1/hands/g", headers={**KEY, "If-Match": put.headers["etag"]}, timeout=60)
+            assert d.status_code == 204, d.text
+            assert httpx.post(f"{url}/v1/hands", files=upload(short), headers=KEY, timeout=60).status_code == 201
+            assert all(p["hand_revision"] == 1 and _close(p, expected_short) for p in plans(16))
+        finally:
+            proc.send_signal(signal.SIGTERM)
+            try:
+                proc.wait(30)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(10)
+
+
+def _ready(url: str) -> bool:
+    try:
+        return all(httpx.get(f"{url}/readyz", timeout=5).status_code == 200 for _ in range(4))
+    except httpx.TransportError:
+        return False
