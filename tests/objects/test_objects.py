@@ -141,7 +141,7 @@ def test_polygon_moments_of_a_rectangle() -> None:
 @given(
     st.sampled_from(["box", "cylinder", "ellipsoid", "mesh"]),
     st.tuples(*[st.floats(min_value=0.01, max_value=0.3)] * 3),
-    st.floats(min_value=-7.0, max_value=7.0),
+    st.floats(min_value=-2 * math.pi, max_value=2 * math.pi),
 )
 def test_axes_are_an_orthonormal_horizontal_pair(kind: str, dims: tuple[float, ...], yaw: float) -> None:
     if kind == "box":
