@@ -36,6 +36,12 @@ def incarnation(created_at: datetime) -> str:
     return hashlib.sha256(created_at.astimezone(UTC).isoformat().encode()).hexdigest()[:8]
 
 
+def revision_token(name: str, revision: int, created_at: datetime) -> str:
+    """``<name>.r<revision>.<incarnation>``: names one revision of one life of a hand (the ETag's text, the key of
+    the planner's caches of the hand)."""
+    return f"{name}.r{revision}.{incarnation(created_at)}"
+
+
 @dataclass(frozen=True)
 class HandRecord:
     """A registered hand: its manifest on disk, the summary of its model (``info``) and registry metadata."""
@@ -52,10 +58,15 @@ class HandRecord:
     updated_at: datetime
 
     @property
+    def token(self) -> str:
+        """This revision's :func:`revision_token`, unique also across a delete and a re-creation under the same
+        name (:func:`incarnation`)."""
+        return revision_token(self.name, self.revision, self.created_at)
+
+    @property
     def etag(self) -> str:
-        """Strong ETag of this revision of the hand: ``"<name>.r<revision>.<incarnation>"``, unique also across a
-        delete and a re-creation under the same name (:func:`incarnation`)."""
-        return f'"{self.name}.r{self.revision}.{incarnation(self.created_at)}"'
+        """Strong ETag of this revision of the hand: ``"<name>.r<revision>.<incarnation>"`` (:attr:`token`)."""
+        return f'"{self.token}"'
 
 
 @dataclass(frozen=True)
@@ -110,9 +121,8 @@ def hand_ref(reg: Registry, name: str, *, field: str = "hand") -> HandRef:
         row = conn.execute(_REF_QUERY, {"name": name}).one_or_none()
     if row is None:  # HandNotFound with the registered names as choices (or a hand registered meanwhile)
         rec = get_hand(reg, name, field=field)
-        return HandRef(rec.name, rec.revision, rec.manifest_path, rec.etag.strip('"'))
-    token = f"{row.name}.r{row.revision}.{incarnation(row.created_at)}"
-    return HandRef(row.name, row.revision, row.manifest_path, token)
+        return HandRef(rec.name, rec.revision, rec.manifest_path, rec.token)
+    return HandRef(row.name, row.revision, row.manifest_path, revision_token(row.name, row.revision, row.created_at))
 
 
 def hand_names(reg: Registry) -> list[str]:

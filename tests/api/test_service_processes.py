@@ -3,6 +3,7 @@ the jobs, and a job whose process is killed (``kill -9``) completes in the other
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -69,13 +70,7 @@ class Service:
 
     def stop(self) -> None:
         self.http.close()
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(30)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(10)
+        terminate(self.proc)
         self.log.close()
 
 
@@ -144,16 +139,31 @@ def test_metrics_of_several_processes_count_together(tmp_path: Path) -> None:
     """``softsig serve --workers 2``: requests spread over new connections land in both processes, and every scrape
     of /metrics, whichever process answers it, counts all of them."""
     metrics_dir = tmp_path / "metrics"
+    with serve_workers(tmp_path, metrics_dir) as url:
+        before = _healthz_count(httpx.get(f"{url}/metrics", timeout=10).text)
+        n = 60
+        for _ in range(n):  # a new connection each: the two processes accept them in turn
+            assert httpx.get(f"{url}/healthz", timeout=10).status_code == 200
+        writers = {p.name.rsplit("_", 1)[-1] for p in metrics_dir.glob("counter_*.db")}
+        assert len(writers) >= 2, f"one process served every request: {writers}"
+        for _ in range(6):  # each scrape may be answered by either process
+            assert _healthz_count(httpx.get(f"{url}/metrics", timeout=10).text) == before + n
+
+
+@contextlib.contextmanager
+def serve_workers(tmp_path: Path, metrics_dir: Path) -> Iterator[str]:
+    """``softsig serve --workers 2`` on a free port, its registry in ``tmp_path/data`` and its multiprocess metrics
+    in ``metrics_dir``; yields its URL once both processes answer, stops it after."""
     metrics_dir.mkdir()
     port = _free_port()
     env = {**os.environ, "SOFTSIG_DATA_DIR": str(tmp_path / "data"), "SOFTSIG_API_KEYS": "k",
            "SOFTSIG_WARM_PLANNER": "false", "PROMETHEUS_MULTIPROC_DIR": str(metrics_dir)}  # fmt: skip
+    url = f"http://127.0.0.1:{port}"
     with (tmp_path / "serve.log").open("w") as log:
         proc = subprocess.Popen(
             [sys.executable, "-m", "softsig_service.cli", "serve", "--workers", "2", "--port", str(port)],
             env=env, stdout=log, stderr=subprocess.STDOUT,
         )  # fmt: skip
-        url = f"http://127.0.0.1:{port}"
         try:
 
             def both_ready() -> bool:
@@ -164,21 +174,20 @@ def test_metrics_of_several_processes_count_together(tmp_path: Path) -> None:
                     return False
 
             wait_for(both_ready, timeout=180, poll=0.5)
-            before = _healthz_count(httpx.get(f"{url}/metrics", timeout=10).text)
-            n = 60
-            for _ in range(n):  # a new connection each: the two processes accept them in turn
-                assert httpx.get(f"{url}/healthz", timeout=10).status_code == 200
-            writers = {p.name.rsplit("_", 1)[-1] for p in metrics_dir.glob("counter_*.db")}
-            assert len(writers) >= 2, f"one process served every request: {writers}"
-            for _ in range(6):  # each scrape may be answered by either process
-                assert _healthz_count(httpx.get(f"{url}/metrics", timeout=10).text) == before + n
+            yield url
         finally:
-            proc.send_signal(signal.SIGTERM)
-            try:
-                proc.wait(30)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait(10)
+            terminate(proc)
+
+
+def terminate(proc: subprocess.Popen[bytes]) -> None:
+    """SIGTERM, then SIGKILL if the process has not ended within 30 s."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(10)
 
 
 def _plans_served(metrics_dir: Path) -> dict[str, float]:
@@ -212,13 +221,8 @@ def test_a_replaced_hand_is_planned_anew_by_every_worker(tmp_path: Path) -> None
     short, long = gripper_files("g"), _long_jaws(gripper_files("g"))
     expected_long, expected_short = _fresh_plan(tmp_path / "f1", long), _fresh_plan(tmp_path / "f2", short)
     metrics_dir = tmp_path / "metrics"
-    metrics_dir.mkdir()
-    port = _free_port()
-    env = {**os.environ, "SOFTSIG_DATA_DIR": str(tmp_path / "data"), "SOFTSIG_API_KEYS": "k",
-           "SOFTSIG_WARM_PLANNER": "false", "PROMETHEUS_MULTIPROC_DIR": str(metrics_dir)}  # fmt: skip
-    url = f"http://127.0.0.1:{port}"
 
-    def plans(n: int) -> list[dict[str, Any]]:  # a new connection each: both processes answer some
+    def plans(url: str, n: int) -> list[dict[str, Any]]:  # a new connection each: both processes answer some
         out = []
         for _ in range(n):
             r = httpx.post(f"{url}/v1/plans", json=PLAN, headers=KEY, timeout=120)
@@ -226,39 +230,19 @@ def test_a_replaced_hand_is_planned_anew_by_every_worker(tmp_path: Path) -> None
             out.append(r.json())
         return out
 
-    with (tmp_path / "serve.log").open("w") as log:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "softsig_service.cli", "serve", "--workers", "2", "--port", str(port)],
-            env=env, stdout=log, stderr=subprocess.STDOUT,
-        )  # fmt: skip
-        try:
-            wait_for(lambda: proc.poll() is None and _ready(url), timeout=180, poll=0.5)
-            r = httpx.post(f"{url}/v1/hands", files=upload(short), headers=KEY, timeout=60)
-            assert r.status_code == 201, r.text
-            assert all(_close(p, expected_short) for p in plans(16))
-            before = _plans_served(metrics_dir)
-            assert len(before) == 2, f"one process planned every request: {before}"
-            put = httpx.put(f"{url}/v1/hands/g", files=upload(long), headers={**KEY, "If-Match": r.headers["etag"]},
-                            timeout=60)  # fmt: skip
-            assert put.status_code == 200, put.text
-            assert all(p["hand_revision"] == 2 and _close(p, expected_long) for p in plans(16))
-            after = _plans_served(metrics_dir)
-            assert all(after[pid] > before[pid] for pid in before), (before, after)
-            d = httpx.delete(f"{url}/v1/hands/g", headers={**KEY, "If-Match": put.headers["etag"]}, timeout=60)
-            assert d.status_code == 204, d.text
-            assert httpx.post(f"{url}/v1/hands", files=upload(short), headers=KEY, timeout=60).status_code == 201
-            assert all(p["hand_revision"] == 1 and _close(p, expected_short) for p in plans(16))
-        finally:
-            proc.send_signal(signal.SIGTERM)
-            try:
-                proc.wait(30)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait(10)
-
-
-def _ready(url: str) -> bool:
-    try:
-        return all(httpx.get(f"{url}/readyz", timeout=5).status_code == 200 for _ in range(4))
-    except httpx.TransportError:
-        return False
+    with serve_workers(tmp_path, metrics_dir) as url:
+        r = httpx.post(f"{url}/v1/hands", files=upload(short), headers=KEY, timeout=60)
+        assert r.status_code == 201, r.text
+        assert all(_close(p, expected_short) for p in plans(url, 16))
+        before = _plans_served(metrics_dir)
+        assert len(before) == 2, f"one process planned every request: {before}"
+        put = httpx.put(f"{url}/v1/hands/g", files=upload(long), headers={**KEY, "If-Match": r.headers["etag"]},
+                        timeout=60)  # fmt: skip
+        assert put.status_code == 200, put.text
+        assert all(p["hand_revision"] == 2 and _close(p, expected_long) for p in plans(url, 16))
+        after = _plans_served(metrics_dir)
+        assert all(after[pid] > before[pid] for pid in before), (before, after)
+        d = httpx.delete(f"{url}/v1/hands/g", headers={**KEY, "If-Match": put.headers["etag"]}, timeout=60)
+        assert d.status_code == 204, d.text
+        assert httpx.post(f"{url}/v1/hands", files=upload(short), headers=KEY, timeout=60).status_code == 201
+        assert all(p["hand_revision"] == 1 and _close(p, expected_short) for p in plans(url, 16))

@@ -111,10 +111,9 @@ def capture_model(ctx: AppContext, hand: repo.HandRef, obj: TableObject, version
         key, source = rec.etag, rec.data
     else:
         found, stale = repo.signature_of_object(ctx.registry, hand.name, "capture", digest)
-        shipped = shipped_capture_for(FsPath(hand.manifest_path).parent, obj) if found is None else None
         if found is not None:  # a version's ETag names its content (hand, version, incarnation)
             key, source = found.etag, found.data
-        elif shipped is not None:
+        elif (shipped := shipped_capture_for(FsPath(hand.manifest_path).parent, obj)) is not None:
             key, source = f"{hand.token}:{shipped.name}:{shipped.stat().st_mtime_ns}", shipped
         elif stale:
             raise InvalidInput(
@@ -263,7 +262,7 @@ async def plan_image(ctx: Ctx, plan_id: PlanId) -> Response:
             # the hand as it was planned with: the same revision of the same incarnation (one created before the
             # plan; a hand deleted and re-created since counts its revisions anew)
             if hand.revision == rec.result.get("hand_revision") and hand.created_at <= rec.created_at:
-                manifest, token = hand.manifest_path, hand.etag.strip('"')
+                manifest, token = hand.manifest_path, hand.token
         except HandNotFound:
             pass
         png = await ctx.pool.run(
