@@ -77,6 +77,14 @@ class Settings(BaseSettings):
     body_read_timeout: float = Field(
         30.0, gt=0.0, description="longest wait for the next part of a request body before 408 [s]"
     )
+    body_deadline: float = Field(
+        300.0, gt=0.0, description="longest time a request body may take to arrive in full before 408 [s] (the "
+        "largest upload at 0.4 MB/s)",
+    )  # fmt: skip
+    header_timeout: float = Field(
+        10.0, gt=0.0, description="longest time a request's headers may take to arrive, from the connection's "
+        "opening or the end of its previous answer, before 408 and a closed connection [s]",
+    )  # fmt: skip
     retention_days: float | None = Field(
         None, gt=0.0, description="stored plans and finished jobs (with their files) older than this are removed"
     )

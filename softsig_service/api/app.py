@@ -168,6 +168,7 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
         api_keys=[k.get_secret_value() for k in settings.api_keys],
         read_auth=settings.read_auth,
         body_read_timeout=settings.body_read_timeout,
+        body_deadline=settings.body_deadline,
     )
     app.add_middleware(RequestContextMiddleware, metrics=metrics, routes=templates)
     return app

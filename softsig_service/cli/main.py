@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -148,6 +149,7 @@ def serve(
 
     from softsig_service.api.app import create_app
     from softsig_service.api.logging import configure_logging
+    from softsig_service.api.serving import ServiceConfig
     from softsig_service.experiments.campaign import default_workers
 
     with _errors():
@@ -164,10 +166,14 @@ def serve(
         _check_port(settings.host, settings.port)
         common: dict[str, Any] = {
             "host": settings.host, "port": settings.port, "log_config": None, "access_log": False,
-            "timeout_graceful_shutdown": 10,
+            "timeout_graceful_shutdown": 10, "header_timeout": settings.header_timeout,
         }  # fmt: skip
         if n == 1:
-            uvicorn.run(create_app(settings), **common)
+            server = uvicorn.Server(ServiceConfig(create_app(settings), **common))
+            with contextlib.suppress(KeyboardInterrupt):
+                server.run()
+            if not server.started:
+                raise typer.Exit(3)  # uvicorn's startup failure (it logged why)
             return
         # the worker processes build their settings from the environment: pass the options on that way
         for key, value in overrides.items():
@@ -181,7 +187,7 @@ def serve(
         # each process migrates the registry and registers the built-in hands at its start; both are safe when
         # processes start together (one upgrade under a lock, one registration per hand)
         try:
-            _serve_processes(uvicorn.Config("softsig_service.api.app:service_app", factory=True, workers=n, **common))
+            _serve_processes(ServiceConfig("softsig_service.api.app:service_app", factory=True, workers=n, **common))
         finally:
             if metrics_dir is not None:
                 shutil.rmtree(metrics_dir, ignore_errors=True)

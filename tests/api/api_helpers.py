@@ -106,3 +106,42 @@ def pid_alive(pid: int) -> bool:
     except FileNotFoundError:
         return False
     return state not in ("Z", "X")
+
+
+def trickle(port: int, data: bytes, interval: float, limit: float, head: bytes = b"") -> tuple[bytes, float]:
+    """Send ``head`` at once, then ``data`` one byte every ``interval`` seconds to the service on ``port``, as a
+    slow client does, reading whatever it answers; stops when the service closes the connection or after ``limit`` seconds. Returns what the
+    service sent and the seconds until it closed (``limit`` when it never did)."""
+    import socket
+
+    start = time.monotonic()
+    with socket.create_connection(("127.0.0.1", port), timeout=limit) as sock:
+        sock.sendall(head)
+        sock.setblocking(False)
+        answer = b""
+        for byte in data:
+            if time.monotonic() - start > limit:
+                return answer, limit
+            try:
+                sock.sendall(bytes([byte]))
+            except OSError:  # closed by the service
+                break
+            time.sleep(interval)
+            try:
+                chunk = sock.recv(65536)
+            except BlockingIOError:
+                continue
+            except OSError:
+                break
+            if not chunk:
+                return answer, time.monotonic() - start
+            answer += chunk
+        sock.settimeout(max(limit - (time.monotonic() - start), 0.01))
+        try:
+            while chunk := sock.recv(65536):
+                answer += chunk
+        except TimeoutError:
+            return answer, limit
+        except OSError:
+            pass
+    return answer, time.monotonic() - start

@@ -12,20 +12,22 @@ from pathlib import Path
 
 import pytest
 import uvicorn
-from api_helpers import AUTH, KEY, assert_problem, gripper_files, make_settings, upload
+from api_helpers import AUTH, KEY, assert_problem, gripper_files, make_settings, trickle, upload
 from fastapi.testclient import TestClient
 from test_api_serve import free_port
 
 from softsig_service.api.app import create_app
+from softsig_service.api.serving import ServiceConfig
 
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[int, Path]]:
     """A real uvicorn server of the app in a thread: (port, data folder)."""
     data = tmp_path_factory.mktemp("door")
-    app = create_app(make_settings(data, body_read_timeout=1.0, max_markers_bytes=50_000))
+    app = create_app(make_settings(data, body_read_timeout=1.0, body_deadline=3.0, max_markers_bytes=50_000))
     port = free_port()
-    srv = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_config=None, access_log=False))
+    config = ServiceConfig(app, host="127.0.0.1", port=port, log_config=None, access_log=False, header_timeout=1.0)
+    srv = uvicorn.Server(config)
     thread = threading.Thread(target=srv.run, daemon=True)
     thread.start()
     deadline = time.monotonic() + 60
@@ -75,6 +77,40 @@ def test_a_stalled_body_times_out(server: tuple[int, Path]) -> None:
     status, body, elapsed = _raw(port, _head(port, "/v1/hands", 10_000, KEY), b"--xx\r\n")
     assert status == 408 and body["type"].endswith("request-timeout") and body["field"] == "body", body
     assert elapsed < 8.0
+
+
+def test_trickled_headers_get_408_and_a_closed_connection(server: tuple[int, Path]) -> None:
+    port, _ = server
+    request = b"GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Padding: " + b"a" * 200 + b"\r\n\r\n"
+    answer, closed_after = trickle(port, request, interval=0.1, limit=10.0)  # 22 s to send it all
+    assert answer.startswith(b"HTTP/1.1 408 "), answer
+    assert closed_after < 4.0  # the header timeout is 1 s
+
+
+def test_a_trickled_body_gets_408_at_its_deadline(server: tuple[int, Path]) -> None:
+    port, _ = server
+    head = (f"POST /v1/plans HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+            f"X-API-Key: {KEY}\r\nContent-Length: 1000\r\n\r\n").encode()  # fmt: skip
+    # a byte every 0.25 s never stalls past the 1 s read timeout; the whole body is due within 3 s
+    answer, closed_after = trickle(port, b" " * 1000, interval=0.25, limit=15.0, head=head)
+    assert answer.startswith(b"HTTP/1.1 408 "), answer
+    problem = json.loads(answer.split(b"\r\n\r\n", 1)[1])
+    assert problem["field"] == "body" and problem["value"] == 3.0 and "whole" in problem["detail"], problem
+    assert closed_after < 7.0
+
+
+def test_every_request_of_a_kept_alive_connection_has_its_own_header_time(server: tuple[int, Path]) -> None:
+    port, _ = server
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as sock:
+        for _ in range(4):  # 2.4 s on one connection, longer than the 1 s header timeout
+            sock.sendall(b"GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+            data = b""
+            while b"\r\n\r\n" not in data or not data.endswith(b"}"):
+                chunk = sock.recv(65536)
+                assert chunk, "the service closed a connection that was in time"
+                data += chunk
+            assert data.startswith(b"HTTP/1.1 200 "), data
+            time.sleep(0.6)
 
 
 @pytest.fixture(scope="module")

@@ -17,7 +17,7 @@ from typing import Any
 
 import httpx
 import pytest
-from api_helpers import pid_alive, wait_for
+from api_helpers import pid_alive, trickle, wait_for
 
 KEY = {"X-API-Key": "k"}
 BOX = {"kind": "box", "size": [0.16, 0.06, 0.05], "mass": 0.15}
@@ -151,13 +151,15 @@ def test_metrics_of_several_processes_count_together(tmp_path: Path) -> None:
 
 
 @contextlib.contextmanager
-def serve_workers(tmp_path: Path, metrics_dir: Path) -> Iterator[str]:
-    """``softsig serve --workers 2`` on a free port, its registry in ``tmp_path/data`` and its multiprocess metrics
-    in ``metrics_dir``; yields its URL once both processes answer, stops it after."""
+def serve_workers(tmp_path: Path, metrics_dir: Path, **settings: str) -> Iterator[str]:
+    """``softsig serve --workers 2`` on a free port, its registry in ``tmp_path/data``, its multiprocess metrics
+    in ``metrics_dir`` and ``settings`` as ``SOFTSIG_*`` variables; yields its URL once both processes answer,
+    stops it after."""
     metrics_dir.mkdir()
     port = _free_port()
     env = {**os.environ, "SOFTSIG_DATA_DIR": str(tmp_path / "data"), "SOFTSIG_API_KEYS": "k",
-           "SOFTSIG_WARM_PLANNER": "false", "PROMETHEUS_MULTIPROC_DIR": str(metrics_dir)}  # fmt: skip
+           "SOFTSIG_WARM_PLANNER": "false", "PROMETHEUS_MULTIPROC_DIR": str(metrics_dir),
+           **{f"SOFTSIG_{key.upper()}": value for key, value in settings.items()}}  # fmt: skip
     url = f"http://127.0.0.1:{port}"
     with (tmp_path / "serve.log").open("w") as log:
         proc = subprocess.Popen(
@@ -246,3 +248,20 @@ def test_a_replaced_hand_is_planned_anew_by_every_worker(tmp_path: Path) -> None
         assert d.status_code == 204, d.text
         assert httpx.post(f"{url}/v1/hands", files=upload(short), headers=KEY, timeout=60).status_code == 201
         assert all(p["hand_revision"] == 1 and _close(p, expected_short) for p in plans(url, 16))
+
+
+def test_the_service_processes_cut_off_slow_clients(tmp_path: Path) -> None:
+    """The header deadline reaches every process of ``softsig serve --workers 2`` (its HTTP protocol's setting
+    travels with uvicorn's configuration): clients trickling their headers a byte at a time get 408 and a closed
+    connection after ``SOFTSIG_HEADER_TIMEOUT`` = 2 s, not the default 10 s."""
+    import concurrent.futures
+
+    request = b"GET /readyz HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Padding: " + b"a" * 300 + b"\r\n\r\n"
+    with serve_workers(tmp_path, tmp_path / "metrics", header_timeout="2") as url:
+        port = int(url.rsplit(":", 1)[1])
+        with concurrent.futures.ThreadPoolExecutor(6) as pool:
+            results = list(pool.map(lambda _: trickle(port, request, interval=0.1, limit=20.0), range(6)))
+        assert httpx.get(f"{url}/readyz", timeout=10).status_code == 200  # in-time clients are served
+    for answer, closed_after in results:
+        assert answer.startswith(b"HTTP/1.1 408 "), answer
+        assert closed_after < 7.0, closed_after
