@@ -9,8 +9,8 @@ shutdown it kills its running jobs, hands them back to the queue and stops the w
 Routes live under ``/v1`` (``routes/``); ``/healthz``, ``/readyz`` and ``/metrics`` at the root. Middleware, from
 the outside in: request id + access log + metrics (``api/logging.py``), the API key and the body read timeout
 (``api/guard.py``), then the body limits (``api/problems.py``).
-``openapi/openapi.json`` is :func:`openapi_json` of an app with default settings (the schema does not depend on
-settings).
+``openapi/openapi.json`` is :func:`openapi_json` of an app with default settings; what of the document depends on
+the settings is listed in :mod:`softsig_service.api.contract`.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from starlette.concurrency import run_in_threadpool
 from softsig_service import __version__
 from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
+from softsig_service.api.contract import apply_settings
 from softsig_service.api.docs_page import install_docs
 from softsig_service.api.guard import AuthGateMiddleware
 from softsig_service.api.idempotency import IdempotencyMiddleware
@@ -154,6 +155,7 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
     for router in routers:
         app.include_router(router)
     templates = [route for router in routers for route in router.routes]
+    app.state.routes = templates  # what a 405's Allow header lists (api/problems.py)
     # inside the body limit: a replayed request's body is counted too
     app.add_middleware(IdempotencyMiddleware, routes=templates)
     app.add_middleware(
@@ -171,7 +173,20 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
         body_deadline=settings.body_deadline,
     )
     app.add_middleware(RequestContextMiddleware, metrics=metrics, routes=templates)
+    _document_settings(app, settings)
     return app
+
+
+def _document_settings(app: FastAPI, settings: Settings) -> None:
+    """``app.openapi()`` states what ``settings`` make the service enforce (:mod:`softsig_service.api.contract`)."""
+    build = app.openapi
+
+    def openapi() -> dict[str, Any]:
+        if app.openapi_schema is None:
+            app.openapi_schema = apply_settings(build(), settings)
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]
 
 
 def service_app() -> FastAPI:

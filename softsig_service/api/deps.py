@@ -64,11 +64,14 @@ WriteAccess = Depends(require_write)
 ReadAccess = Depends(require_read)
 
 
+IF_MATCH_REQUIRED_DESCRIPTION = "the ETag of the resource's current representation"
+"""The description of the ``If-Match`` header that ``require_if_match`` makes required (the OpenAPI document
+marks it so: :mod:`softsig_service.api.contract`)."""
+
+
 async def if_match_required(
     request: Request,
-    if_match: Annotated[
-        str | None, Header(alias="If-Match", description="the ETag of the resource's current representation")
-    ] = None,
+    if_match: Annotated[str | None, Header(alias="If-Match", description=IF_MATCH_REQUIRED_DESCRIPTION)] = None,
 ) -> str | None:
     """The ``If-Match`` header of an update or delete; 428 when it is missing and ``require_if_match`` is set."""
     ctx: AppContext = request.app.state.ctx

@@ -15,6 +15,7 @@ from softsig_service.api.context import AppContext
 from softsig_service.api.schemas import CaptureSignatureIn, JobOut, StiffnessSignatureIn
 from softsig_service.errors import InvalidInput
 from softsig_service.objects.schema import object_json
+from softsig_service.services.tasks import model_settings
 
 
 def job_out(rec: repo.JobRecord) -> dict[str, Any]:
@@ -64,7 +65,8 @@ async def capture_signature_version(
     params: dict[str, Any] = {"hand": hand.name, "object": obj, "grid": grid, "hand_revision": hand.revision}
     if if_match is not None:
         params["if_match"] = if_match
-    private = {"hand_ref": hand.manifest_path, "workers": ctx.settings.job_workers}
+    private = {"hand_ref": hand.manifest_path, "workers": ctx.settings.job_workers,
+               "settings": model_settings(ctx.settings)}  # fmt: skip
     return await ctx.jobs.submit("capture_signature", params, private=private)
 
 

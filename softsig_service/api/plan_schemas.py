@@ -12,7 +12,7 @@ from typing import Any, Literal
 from pydantic import Field
 
 from softsig_service.api.schemas import ClosureCriterion, CsMethod, HandName, JointAngle, Out, PoseOut, Vector3
-from softsig_service.objects.schema import ObjectSpec, Strict
+from softsig_service.objects.schema import Integer, ObjectSpec, Strict
 
 
 class PlanIn(Strict):
@@ -26,7 +26,7 @@ class PlanIn(Strict):
     strategy: Literal["S", "C", "R"]
     sigma_r: float = Field(0.0, ge=0.0, le=1.0, strict=True, description="std. dev. of the object's yaw [rad] (R)")
     sigma_t: float = Field(0.0, ge=0.0, le=1.0, strict=True, description="std. dev. of its x and y [m] (R)")
-    capture_version: int | None = Field(
+    capture_version: Integer | None = Field(
         None, ge=1, le=2**31 - 1, strict=True,
         description="signature version of the capture model R uses (default: the newest for this object)",
     )  # fmt: skip

@@ -34,12 +34,14 @@ from __future__ import annotations
 import json
 import logging
 import re
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
 from starlette.types import Receive, Scope, Send
 
 from softsig_service.errors import (
@@ -135,8 +137,26 @@ async def _http_handler(request: Request, exc: Exception) -> JSONResponse:
     detail = exc.detail if isinstance(exc.detail, str) else None
     slug = "content-too-large" if status == 413 else slug_of(TITLES.get(status, "error").title().replace(" ", ""))
     extra = getattr(exc, "problem_extensions", {})
+    headers = dict(exc.headers or {})
+    if status == 405:
+        # the router names only the first route whose path matched; the resource has the methods of all of them
+        allowed = allowed_methods(getattr(request.app.state, "routes", ()), request.scope)
+        headers["Allow"] = ", ".join(allowed)
+        extra = {**extra, "choices": allowed}
     body = problem_body(status, slug=slug, detail=detail, instance=request.url.path, **extra)
-    return problem_response(status, body, dict(exc.headers or {}))
+    return problem_response(status, body, headers)
+
+
+def allowed_methods(routes: Iterable[Any], scope: Mapping[str, Any]) -> list[str]:
+    """The methods of the resource at the path of ``scope``: of every route among ``routes`` whose template matches
+    it with the fewest parameters (``/v1/hands/archive`` is the archive route's resource, not a hand's), sorted."""
+    by_parameters: dict[int, set[str]] = {}
+    for route in routes:
+        match, child = route.matches(scope)
+        if match is not Match.NONE:
+            n = len(child.get("path_params", {}))
+            by_parameters.setdefault(n, set()).update(getattr(route, "methods", None) or ())
+    return sorted(by_parameters[min(by_parameters)]) if by_parameters else []
 
 
 def internal_error(method: str, path: str, exc: BaseException) -> JSONResponse:

@@ -1,8 +1,9 @@
 """Request and response bodies of the REST API (pydantic; the boundary only, no behaviour).
 
 Request bodies are strict: unknown fields, NaN and infinities are rejected (``extra="forbid"``,
-``allow_inf_nan=False``), and so are strings or booleans for numbers, numbers for booleans and floats for
-integers (``strict=True`` on every number and flag), with a 422 problem naming the field. Response bodies allow
+``allow_inf_nan=False``), and so are strings or booleans for numbers, numbers for booleans and numbers with a
+fractional part for integers (``strict=True`` on every number and flag; ``2.0`` is the integer 2, as JSON Schema
+has it), with a 422 problem naming the field. Response bodies allow
 extra keys, so that a field added to a result type reaches clients without a schema change.
 
 Units and frames (docs/design.md §3): SI units (m, rad, s, kg, N); the world frame is the UR5 ``base_link`` (z
@@ -20,6 +21,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from softsig_service.objects.schema import (
+    Integer,
     ObjectSpec,
     Strict,
 )
@@ -171,13 +173,13 @@ class CaptureSignatureIn(Strict):
     checks of the model (docs/planning.md, strategy R)."""
 
     object: ObjectSpec
-    n_theta: int = Field(12, ge=2, le=72, strict=True, description="relative yaws over a half turn")
+    n_theta: Integer = Field(12, ge=2, le=72, strict=True, description="relative yaws over a half turn")
     half_width: float = Field(0.03, gt=0.0, le=0.1, strict=True, description="largest offset [m]")
     step: float = Field(
         0.01, ge=MIN_CAPTURE_STEP, le=0.1, strict=True, description="offset step [m], at most half_width"
     )
-    holdout: int = Field(60, ge=0, le=10_000, strict=True, description="held-out simulations at random poses")
-    seed: int = Field(0, ge=0, le=2**32 - 1, strict=True, description="seed of the held-out poses")
+    holdout: Integer = Field(60, ge=0, le=10_000, strict=True, description="held-out simulations at random poses")
+    seed: Integer = Field(0, ge=0, le=2**32 - 1, strict=True, description="seed of the held-out poses")
 
 
 class SignatureSummary(Out):
@@ -230,8 +232,8 @@ class ValidationIn(Strict):
     strategy: Literal["S", "C"]
     sigma_r: float = Field(0.0, ge=0.0, le=3.2, strict=True, description="[rad]")
     sigma_t: float = Field(0.0, ge=0.0, le=0.5, strict=True, description="[m]")
-    trials: int = Field(1, ge=1, le=100_000, strict=True)
-    seed: int = Field(0, ge=0, le=2**32 - 1, strict=True)
+    trials: Integer = Field(1, ge=1, le=100_000, strict=True)
+    seed: Integer = Field(0, ge=0, le=2**32 - 1, strict=True)
     time_limit: float | None = Field(
         None, gt=0.0, strict=True, description="wall-time cap [s] (at most the service's cap)"
     )
@@ -243,9 +245,9 @@ class ExperimentIn(Strict):
 
     name: Literal["table1"] = "table1"
     hand: HandName = "pisa_iit_softhand"
-    trials: int = Field(20, ge=1, le=100_000, strict=True, description="trials per cell")
-    seed: int = Field(0, ge=0, le=2**32 - 1, strict=True)
-    workers: int | None = Field(
+    trials: Integer = Field(20, ge=1, le=100_000, strict=True, description="trials per cell")
+    seed: Integer = Field(0, ge=0, le=2**32 - 1, strict=True)
+    workers: Integer | None = Field(
         None, ge=1, le=64, strict=True, description="worker processes (default: the job's own choice)"
     )
     time_limit: float | None = Field(

@@ -43,6 +43,7 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any, Literal
 
+from softsig_service.config import Settings
 from softsig_service.errors import Conflict, InvalidInput
 from softsig_service.experiments.campaign_spec import (
     BACKENDS,
@@ -58,8 +59,9 @@ from softsig_service.experiments.statistics import summarize
 from softsig_service.signatures.capture import CaptureModel
 
 
-def run_trial_spec(spec: TrialSpec) -> dict[str, Any]:
-    """Run one campaign trial and return its JSON record (used by the worker processes and Ray tasks)."""
+def run_trial_spec(spec: TrialSpec, settings: Settings | None = None) -> dict[str, Any]:
+    """Run one campaign trial under ``settings`` (model limits, robots folder; default: the built-in ones) and
+    return its JSON record (used by the worker processes and Ray tasks)."""
     from softsig_service.gl_backend import prepare_mujoco
 
     prepare_mujoco()
@@ -78,6 +80,7 @@ def run_trial_spec(spec: TrialSpec) -> dict[str, Any]:
         sigma_r=spec.sigma_r,
         sigma_t=spec.sigma_t,
         plan_options=options,
+        settings=settings,
     )
     record = result.to_json_dict()
     record.update(key=spec.key, index=spec.index, condition=spec.condition, trial=spec.trial, pid=os.getpid())
@@ -90,7 +93,9 @@ def load_capture(path: str) -> CaptureModel:
     return CaptureModel.from_json_dict(json.loads(Path(path).read_text(encoding="utf-8")))
 
 
-def ensure_capture_models(spec: CampaignSpec, out: Path, workers: int) -> dict[str, Path]:
+def ensure_capture_models(
+    spec: CampaignSpec, out: Path, workers: int, settings: Settings | None = None
+) -> dict[str, Path]:
     """For a campaign with strategy R: the capture model of the hand on each object, read from
     ``out/capture/<object>.json``, else copied there from the hand's shipped model when it was built for the same
     object pose, grid and plan options, else built now (:func:`~softsig_service.experiments.capture.
@@ -115,7 +120,9 @@ def ensure_capture_models(spec: CampaignSpec, out: Path, workers: int) -> dict[s
             text = matching_shipped_capture(shipped, obj, CaptureGrid(), options) if shipped is not None else None
             if text is None:
                 text = json.dumps(
-                    build_capture_model(spec.hand, obj, workers=workers, plan_options=options).to_json_dict()
+                    build_capture_model(
+                        spec.hand, obj, workers=workers, plan_options=options, settings=settings
+                    ).to_json_dict()
                 )
             tmp = path.with_suffix(".tmp")
             tmp.write_text(text.rstrip("\n") + "\n", encoding="utf-8")
@@ -222,13 +229,15 @@ def run_campaign(
     address: str | None = None,
     progress: bool | ProgressCallback = False,
     max_trials: int | None = None,
+    settings: Settings | None = None,
 ) -> CampaignResult:
     """Run (or resume) ``spec`` writing into ``out``; see the module docstring.
 
     ``workers``: processes (local) or CPUs of a local Ray; default :func:`default_workers`. ``workers=1`` with
     the local backend runs in this process (no pool). ``progress``: True for a rich progress bar on stderr, or
     a callback. ``max_trials``: stop after this many new trials (an interruption on purpose; the campaign
-    stays resumable). Raises :class:`InvalidInput` for a bad backend or worker count or a missing Ray,
+    stays resumable). ``settings``: the model limits and robots folder every trial loads under (default: the built-in
+    ones; the service passes its own). Raises :class:`InvalidInput` for a bad backend or worker count or a missing Ray,
     :class:`Conflict` if ``out`` holds another campaign.
     """
     if backend not in BACKENDS:
@@ -244,7 +253,7 @@ def run_campaign(
     trials_path = out / TRIALS_FILE
     specs = spec.trial_specs()
     if "R" in spec.strategies:
-        capture = ensure_capture_models(spec, out, n_workers if backend == "local" else 1)
+        capture = ensure_capture_models(spec, out, n_workers if backend == "local" else 1, settings)
         specs = [dataclasses.replace(t, capture_file=str(capture[t.object])) if t.strategy == "R" else t for t in specs]
     by_key = {t.key: t for t in specs}
     done = {r["key"]: r for r in read_records(trials_path) if r["key"] in by_key}
@@ -261,7 +270,7 @@ def run_campaign(
     ):
         if todo and _ends_torn(trials_path):
             sink.write("\n")  # a torn last line of an interrupted run stays alone on its line
-        for record in _execute(todo, backend, n_workers, address):
+        for record in _execute(todo, backend, n_workers, address, settings):
             sink.write(json.dumps(record) + "\n")
             sink.flush()
             done[record["key"]] = record
@@ -298,20 +307,22 @@ def _progress_bar(enabled: bool, total: int, completed: int) -> Iterator[Callabl
         yield lambda: bar.advance(task)
 
 
-def _execute(todo: list[TrialSpec], backend: str, workers: int, address: str | None) -> Iterator[dict[str, Any]]:
+def _execute(
+    todo: list[TrialSpec], backend: str, workers: int, address: str | None, settings: Settings | None
+) -> Iterator[dict[str, Any]]:
     if not todo:
         return
     if backend == "ray":
-        yield from _execute_ray(todo, workers, address)
+        yield from _execute_ray(todo, workers, address, settings)
     elif workers == 1:
         _worker_init()
         for t in todo:
-            yield run_trial_spec(t)
+            yield run_trial_spec(t, settings)
     else:
-        yield from _execute_pool(todo, workers)
+        yield from _execute_pool(todo, workers, settings)
 
 
-def _execute_pool(todo: list[TrialSpec], workers: int) -> Iterator[dict[str, Any]]:
+def _execute_pool(todo: list[TrialSpec], workers: int, settings: Settings | None) -> Iterator[dict[str, Any]]:
     """A spawn-context process pool; at most ``2 * workers`` trials in flight (an interrupt loses little)."""
     ctx = get_context("spawn")
     pending: set[Future[dict[str, Any]]] = set()
@@ -319,7 +330,7 @@ def _execute_pool(todo: list[TrialSpec], workers: int) -> Iterator[dict[str, Any
     with ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx, initializer=_worker_init) as pool:
         try:
             for t in queue:
-                pending.add(pool.submit(run_trial_spec, t))
+                pending.add(pool.submit(run_trial_spec, t, settings))
                 if len(pending) >= 2 * workers:
                     break
             while pending:
@@ -328,13 +339,15 @@ def _execute_pool(todo: list[TrialSpec], workers: int) -> Iterator[dict[str, Any
                     yield f.result()
                     nxt = next(queue, None)
                     if nxt is not None:
-                        pending.add(pool.submit(run_trial_spec, nxt))
+                        pending.add(pool.submit(run_trial_spec, nxt, settings))
         finally:
             for f in pending:
                 f.cancel()
 
 
-def _execute_ray(todo: list[TrialSpec], workers: int, address: str | None) -> Iterator[dict[str, Any]]:
+def _execute_ray(
+    todo: list[TrialSpec], workers: int, address: str | None, settings: Settings | None
+) -> Iterator[dict[str, Any]]:
     try:
         import ray
     except ImportError:
@@ -352,7 +365,7 @@ def _execute_ray(todo: list[TrialSpec], workers: int, address: str | None) -> It
         started = True
     try:
         remote = ray.remote(num_cpus=1, max_retries=2)(run_trial_spec)
-        pending = [remote.remote(t) for t in todo]
+        pending = [remote.remote(t, settings) for t in todo]
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)
             for ref in ready:

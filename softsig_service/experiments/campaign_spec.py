@@ -28,6 +28,8 @@ STRATEGY_NAMES: tuple[str, ...] = ("S", "C")
 """The strategies a campaign runs by default (the paper's); it may run any of the planner's
 (:data:`~softsig_service.planning.strategies.STRATEGIES`): R uses the hand's capture model on each object
 (``capture/<object>.json`` in the campaign folder, copied or built by the campaign when missing)."""
+TABLE1_CELLS = len(TABLE1_CONDITIONS) * len(TABLE1_OBJECTS) * len(STRATEGY_NAMES)
+"""Cells of the reference experiment's grid (condition x object x strategy): 18."""
 CAPTURE_DIR = "capture"
 PAPER_TABLE1: dict[str, tuple[tuple[int, int], ...]] = {
     "box": ((17, 20), (15, 16), (3, 11)),

@@ -77,9 +77,15 @@ class CaptureGrid:
 
 
 def simulate_relative_yaw(
-    hand: str, obj_json: dict[str, Any], theta: float, offsets: list[tuple[float, float]], plan_options: dict[str, Any]
+    hand: str,
+    obj_json: dict[str, Any],
+    theta: float,
+    offsets: list[tuple[float, float]],
+    plan_options: dict[str, Any],
+    settings: Settings | None = None,
 ) -> list[CaptureSample]:
-    """One yaw: plan the hand at ``(theta, 0, 0)`` once, then roll out each object offset ``(u, v)``."""
+    """One yaw: plan the hand at ``(theta, 0, 0)`` once, then roll out each object offset ``(u, v)``, under
+    ``settings`` (model limits, robots folder; default: the built-in ones)."""
     from softsig_service.gl_backend import prepare_mujoco
 
     prepare_mujoco()
@@ -89,7 +95,7 @@ def simulate_relative_yaw(
     from softsig_service.simulation.rollout import Perturbation
 
     obj = object_from_json(obj_json)
-    planner = default_planner()
+    planner = default_planner(settings)
     plan = planner.plan(PlanRequest(hand=hand, obj=obj, strategy="S", relative_pose=(theta, 0.0, 0.0), **plan_options))
     out: list[CaptureSample] = []
     if not plan.success or plan.grasp_pose is None:
@@ -98,7 +104,7 @@ def simulate_relative_yaw(
     for u, v in offsets:
         shift = u * R[:, 0] + v * R[:, 1]
         pert = Perturbation(d_yaw=0.0, dx=float(shift[0]), dy=float(shift[1]))
-        result = run_trial(hand, obj, "S", seed=0, planner=planner, plan=plan, perturbation=pert)
+        result = run_trial(hand, obj, "S", seed=0, planner=planner, settings=settings, plan=plan, perturbation=pert)
         out.append((theta, u, v, result.success))
     return out
 
@@ -167,10 +173,12 @@ def build_capture_model(
     workers: int = 1,
     plan_options: dict[str, Any] | None = None,
     progress: Callable[[int, int], None] | None = None,
+    settings: Settings | None = None,
 ) -> CaptureModel:
     """Simulate the grid (module docstring) and return the capture model of ``hand`` on the object ``obj_json``
     (object JSON; its nominal pose is where the simulations happen). ``plan_options``: further
-    :class:`~softsig_service.planning.planner.PlanRequest` fields (``placement``...)."""
+    :class:`~softsig_service.planning.planner.PlanRequest` fields (``placement``...). ``settings``: the model
+    limits and robots folder the simulations load under (default: the built-in ones)."""
     grid = grid or CaptureGrid()
     options = dict(plan_options or {})
     thetas = theta_axis(grid.n_theta)
@@ -191,7 +199,8 @@ def build_capture_model(
 
     def run(mapper: Callable[..., Iterator[list[CaptureSample]]]) -> None:
         n = len(yaws)
-        for result in mapper(simulate_relative_yaw, [hand] * n, [obj_json] * n, yaws, task_offsets, [options] * n):
+        args = ([hand] * n, [obj_json] * n, yaws, task_offsets, [options] * n, [settings] * n)
+        for result in mapper(simulate_relative_yaw, *args):
             samples.extend(result)
             if progress is not None:
                 progress(len(samples), total)

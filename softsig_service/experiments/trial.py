@@ -13,6 +13,7 @@ import dataclasses
 import math
 import threading
 import time
+from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -81,18 +82,23 @@ class TrialResult:
         return dataclasses.asdict(self)
 
 
-_PLANNERS: dict[int, tuple[Settings | None, Planner]] = {}
+_PLANNERS: OrderedDict[Settings | None, Planner] = OrderedDict()
 _PLANNERS_LOCK = threading.Lock()
+MAX_PLANNERS = 4
+"""Planners a process keeps (one per distinct settings, least recently used dropped first)."""
 
 
 def default_planner(settings: Settings | None = None) -> Planner:
-    """One :class:`Planner` per process and settings object (its UR5 and collision worlds are built once)."""
+    """One :class:`Planner` per process and settings value (its UR5 and collision worlds are built once): equal
+    settings, such as the copy a worker process receives, share it."""
     with _PLANNERS_LOCK:
-        hit = _PLANNERS.get(id(settings))
-        if hit is None or hit[0] is not settings:
-            hit = (settings, Planner(settings))
-            _PLANNERS[id(settings)] = hit
-        return hit[1]
+        planner = _PLANNERS.get(settings)
+        if planner is None:
+            planner = _PLANNERS[settings] = Planner(settings)
+            while len(_PLANNERS) > MAX_PLANNERS:
+                _PLANNERS.popitem(last=False)
+        _PLANNERS.move_to_end(settings)
+        return planner
 
 
 def run_trial(

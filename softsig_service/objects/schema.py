@@ -4,16 +4,29 @@
 Units and frames: lengths [m] in the object frame, ``pose`` in the world frame (``base_link``): centre (x, y)
 [m], ``yaw`` [rad] about world z, optional centre height ``z`` [m]; mass [kg]; friction dimensionless. Bodies are
 strict: unknown keys, NaN and infinities are errors, and numbers must be JSON numbers (``"0.5"`` and ``false``
-are not).
+are not). An integer is any JSON number without a fractional part, as JSON Schema counts them (``2.0`` is 2,
+``2.5`` is refused).
 """
 
 from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter
 
 from softsig_service.objects.checks import MAX_ANGLE
+
+
+def _integral(value: Any) -> Any:
+    """A float with no fractional part as the int it is (JSON Schema's integer); anything else unchanged."""
+    if type(value) is float and value.is_integer():
+        return int(value)
+    return value
+
+
+Integer = Annotated[int, BeforeValidator(_integral)]
+"""An integer of a request body: a JSON number without a fractional part (strict otherwise: no string, no
+boolean, no ``2.5``); declare ``strict=True`` on its field."""
 
 MIN_LENGTH = 1e-4
 """Smallest length of an object [m] (0.1 mm): below it MuJoCo cannot simulate the object."""
@@ -22,7 +35,7 @@ MIN_MASS = 1e-4
 Length = Annotated[float, Field(ge=MIN_LENGTH, le=5.0, strict=True, description="[m]")]
 Mass = Annotated[float, Field(ge=MIN_MASS, le=1000.0, strict=True, description="[kg]")]
 Coordinate = Annotated[float, Field(ge=-10.0, le=10.0, strict=True, description="[m]")]
-Index = Annotated[int, Field(ge=0, strict=True, description="0-based vertex index")]
+Index = Annotated[Integer, Field(ge=0, strict=True, description="0-based vertex index")]
 Angle = Annotated[float, Field(ge=-MAX_ANGLE, le=MAX_ANGLE, strict=True, description="[rad], within [-2 pi, 2 pi]")]
 
 

@@ -9,10 +9,25 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from softsig_service.config import ModelLimits
+from softsig_service.config import ModelLimits, Settings
 from softsig_service.errors import InvalidHandModel, SoftsigError
 from softsig_service.services.job_process import JobContext
 from softsig_service.services.serialize import to_jsonable
+
+MODEL_SETTINGS = frozenset({"hands_dir", "limits", "robots_dir"})
+"""The settings that shape the models a job loads: where the built-in hands and the UR5 are, and the limits."""
+
+
+def model_settings(settings: Settings) -> dict[str, Any]:
+    """The JSON of the :data:`MODEL_SETTINGS` of ``settings``, for a job's private parameters (``settings``)."""
+    return settings.model_dump(mode="json", include=set(MODEL_SETTINGS))
+
+
+def job_settings(params: dict[str, Any]) -> Settings | None:
+    """The settings a job runs under: those the service passed in ``params["settings"]`` (see
+    :func:`model_settings`), else None (the built-in defaults)."""
+    given = params.get("settings")
+    return Settings(**given) if given is not None else None
 
 
 def _compile(manifest_path: str, limits: ModelLimits) -> Any:
@@ -115,8 +130,9 @@ def run_capture_signature(params: dict[str, Any], ctx: JobContext) -> dict[str, 
         ctx.progress(done / of if of else 1.0, f"{done} of {of} simulations")
 
     model = build_capture_model(
-        str(params["hand_ref"]), params["object"], grid, workers=int(params.get("workers") or 1), progress=progress
-    )
+        str(params["hand_ref"]), params["object"], grid, workers=int(params.get("workers") or 1), progress=progress,
+        settings=job_settings(params),
+    )  # fmt: skip
     data = to_jsonable(model.to_json_dict())
     ctx.out_dir.mkdir(parents=True, exist_ok=True)
     (ctx.out_dir / "capture_model.json").write_text(json.dumps(data) + "\n", encoding="utf-8")
@@ -129,7 +145,8 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     [m]), trial ``k`` seeded as ``softsig validate`` seeds it (same seed, same outcomes).
 
     ``params``: ``hand_ref`` (name or manifest path), ``object`` (object JSON), ``strategy``, ``sigma_r``,
-    ``sigma_t``, ``trials``, ``seed``. Writes ``validation.json`` (every trial's record) and ``outcomes.csv``.
+    ``sigma_t``, ``trials``, ``seed``, ``settings`` (:func:`model_settings`). Writes ``validation.json`` (every
+    trial's record) and ``outcomes.csv``.
     """
     import csv
     import json
@@ -140,12 +157,13 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
 
     obj = object_from_json(params["object"])
     trials, seed = int(params["trials"]), int(params["seed"])
+    settings = job_settings(params)
     results = []
     ctx.progress(0.0, f"0 of {trials} trials")
     for k in range(trials):
         result = run_trial(
             str(params["hand_ref"]), obj, params["strategy"], seed=trial_seed(seed, (), k),
-            sigma_r=float(params["sigma_r"]), sigma_t=float(params["sigma_t"]),
+            sigma_r=float(params["sigma_r"]), sigma_t=float(params["sigma_t"]), settings=settings,
         )  # fmt: skip
         results.append(result)
         ctx.progress((k + 1) / trials, f"{k + 1} of {trials} trials")
@@ -192,7 +210,9 @@ def run_experiment(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     def progress(done: int, of: int) -> None:
         ctx.progress(done / of if of else 1.0, f"{done} of {of} trials")
 
-    result = run_campaign(spec, ctx.out_dir, workers=params.get("workers"), progress=progress)
+    result = run_campaign(
+        spec, ctx.out_dir, workers=params.get("workers"), progress=progress, settings=job_settings(params)
+    )
     return {
         "name": params.get("name", "table1"),
         "hand": params["hand"],

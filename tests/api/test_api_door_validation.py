@@ -52,7 +52,8 @@ def test_the_job_uses_the_same_validator() -> None:
         ),
         ("/v1/validations", {"object": BOX, "strategy": "S", "trials": "2"}, "trials"),
         ("/v1/validations", {"object": BOX, "strategy": "S", "sigma_r": True}, "sigma_r"),
-        ("/v1/validations", {"object": BOX, "strategy": "S", "trials": 2.0}, "trials"),
+        ("/v1/validations", {"object": BOX, "strategy": "S", "trials": 2.5}, "trials"),
+        ("/v1/validations", {"object": BOX, "strategy": "S", "trials": True}, "trials"),
         ("/v1/experiments", {"trials": "3"}, "trials"),
     ],
 )
@@ -89,3 +90,19 @@ def test_every_4xx_is_a_problem(api: TestClient, method: str, path: str, kwargs:
     headers = {**AUTH, **extra.pop("headers", {})}
     response = api.request(method, path, headers=headers, **extra)
     assert_problem(response, status)
+
+
+def test_a_number_without_a_fractional_part_is_an_integer(api: TestClient) -> None:
+    """JSON Schema's integer (the OpenAPI document's ``type: integer``) is any number whose fractional part is
+    zero: ``1.0`` trials and vertex index ``2.0`` are taken as 1 and 2, as the document promises."""
+    from softsig_service.api.schemas import ValidationIn
+
+    tet = {**TET, "faces": [[0, 2.0, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]}
+    body = ValidationIn.model_validate({"object": tet, "strategy": "S", "trials": 1.0, "seed": 7.0})
+    assert (body.trials, body.seed) == (1, 7) and type(body.trials) is int
+    assert body.object.faces is not None and body.object.faces[0] == (0, 2, 1)  # type: ignore[union-attr]
+    plan = api.post("/v1/plans", json={"hand": "parallel_gripper", "object": BOX, "strategy": "R",
+                                       "capture_version": 1.0}, headers=AUTH)  # fmt: skip
+    # past the body's validation: the version 1 is looked up (the gripper has no capture model)
+    assert plan.status_code == 422 and plan.json()["detail"] == "no such signature version", plan.text
+    assert plan.json()["value"] == 1

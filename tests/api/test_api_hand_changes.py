@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from api_helpers import AUTH, gripper_files, make_settings, upload
+from api_helpers import AUTH, gripper_files, make_settings, upload, wait_for
 from fastapi.testclient import TestClient
 
 from softsig_service.api.app import create_app
@@ -91,3 +91,73 @@ def test_planning_loads_hands_under_the_services_limits(tmp_path: Path) -> None:
         image = api.get(f"/v1/plans/{stored.json()['id']}/image.png")  # drawn with the hand, loaded the same way
         assert image.status_code == 200, image.text
         assert image.content.startswith(b"\x89PNG")
+
+
+def _finished(api: TestClient, job_id: str) -> dict[str, Any] | None:
+    job: dict[str, Any] = api.get(f"/v1/jobs/{job_id}").json()
+    return job if job["status"] not in ("queued", "running") else None
+
+
+def _validate(api: TestClient, hand: str, obj: dict[str, Any]) -> dict[str, Any]:
+    """One validation trial of strategy S as a job; the finished job."""
+    r = api.post("/v1/validations", json={"hand": hand, "object": obj, "strategy": "S", "trials": 1}, headers=AUTH)
+    assert r.status_code == 202, r.text
+    job = wait_for(lambda: _finished(api, r.json()["id"]), timeout=240)
+    assert job["status"] == "succeeded", job
+    return job
+
+
+def test_validation_jobs_load_hands_under_the_services_limits(tmp_path: Path) -> None:
+    """The job process loads the hand (and plans it) with the service's raised model limit too."""
+    from softsig_service.config import ModelLimits
+
+    files = gripper_files("g", with_mesh=False)
+    files["parallel_gripper.xml"] = b"<!-- " + b"x" * 2_500_000 + b" -->\n" + files["parallel_gripper.xml"]
+    settings = make_settings(tmp_path, limits=ModelLimits(max_model_bytes=5_000_000), max_upload_bytes=8_000_000)
+    with TestClient(create_app(settings)) as api:
+        assert api.post("/v1/hands", files=upload(files), headers=AUTH).status_code == 201
+        details = api.get(f"/v1/jobs/{_validate(api, 'g', BOX)['id']}/files/validation.json").json()["details"]
+        assert details[0]["plan_reasons"] == [], details[0]
+
+
+def _robots_with_a_locked_elbow(tmp_path: Path) -> Path:
+    """A robots folder whose UR5 has its elbow locked straight (limits +-0.01 rad): it cannot reach the table.
+    The meshes are the installed package's (linked), the URDF and SRDF copies."""
+    import shutil
+
+    from softsig_service.arm.robots_dir import URDF_RELATIVE, find_robots_dir
+
+    robots = tmp_path / "example-robot-data" / "robots"  # meshes are package://example-robot-data/robots/...
+    src = find_robots_dir() / "ur_description"
+    dst = robots / "ur_description"
+    dst.mkdir(parents=True)
+    for child in src.iterdir():
+        if child.name in ("urdf", "srdf"):
+            shutil.copytree(child, dst / child.name)
+        else:
+            (dst / child.name).symlink_to(child)
+    urdf = robots / URDF_RELATIVE
+    text = urdf.read_text(encoding="utf-8")
+    start = text.index('<joint name="elbow_joint" type="revolute">')
+    end = text.index("</joint>", start)
+    joint = text[start:end]
+    locked = joint.replace('lower="-3.14159265359" upper="3.14159265359"', 'lower="-0.01" upper="0.01"')
+    assert locked != joint, joint
+    urdf.write_text(text[:start] + locked + text[end:], encoding="utf-8")
+    return robots
+
+
+def test_plans_and_validation_jobs_use_the_services_robots_folder(tmp_path: Path) -> None:
+    """``robots_dir`` reaches the planner and the job processes: with the service's UR5 unable to bend its elbow,
+    the plan that the installed UR5 reaches is refused as unreachable, in the API and in a validation job."""
+    obj = {"kind": "builtin", "name": "box", "pose": {"x": 0.5, "y": 0.05, "yaw": 0.4}}
+    plan = {"hand": "parallel_gripper", "object": obj, "strategy": "S", "store": False}
+    with TestClient(create_app(make_settings(tmp_path / "installed"))) as api:
+        assert api.post("/v1/plans", json=plan, headers=AUTH).json()["success"] is True
+    settings = make_settings(tmp_path / "locked", robots_dir=_robots_with_a_locked_elbow(tmp_path))
+    with TestClient(create_app(settings)) as api:
+        answer = api.post("/v1/plans", json=plan, headers=AUTH).json()
+        assert answer["success"] is False and any("ik" in r or "reach" in r for r in answer["reasons"]), answer
+        job = _validate(api, "parallel_gripper", obj)
+        details = api.get(f"/v1/jobs/{job['id']}/files/validation.json").json()["details"]
+        assert details[0]["plan_reasons"] == answer["reasons"], details[0]

@@ -29,7 +29,7 @@ MIN_CASES = 5000
 
 _DATA = Path(tempfile.mkdtemp(prefix="softsig-schemathesis-slow-"))
 _APP = create_app(
-    make_settings(_DATA, compute_timeout=20.0, max_job_trials=1, max_job_seconds=3.0, max_queued_jobs=5000)
+    make_settings(_DATA, compute_timeout=20.0, max_job_trials=18, max_job_seconds=3.0, max_queued_jobs=5000)
 )
 schema = schemathesis.openapi.from_dict(_APP.openapi())
 schema.app = _APP

@@ -8,7 +8,8 @@ killed); ``GET /v1/jobs/{id}/files`` lists the result files (JSON, CSV, Markdown
 Job kinds (``kind`` of a job): ``stiffness_signature`` (``POST /v1/hands/{hand}/signatures`` with
 ``{"kind": "stiffness"}``; the signature is stored as a new version when the job succeeds), ``validation``
 (``POST /v1/validations``) and ``experiment`` (``POST /v1/experiments``). Caps: ``max_job_trials`` trials per job
-(an experiment has 18 cells), ``max_job_seconds`` of wall time.
+(an experiment has 18 cells: at most ``max_job_trials // 18`` per cell, as its schema states), ``max_job_seconds``
+of wall time.
 """
 
 from __future__ import annotations
@@ -27,9 +28,11 @@ from softsig_service.api.routes.common import SUBMIT_JOB, problem, read_route, w
 from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page, page_of
 from softsig_service.api.schemas import ExperimentIn, JobFiles, JobList, JobOut, ValidationIn
 from softsig_service.errors import HandNotFound, InvalidInput, NotAvailable, NotFound
+from softsig_service.experiments.campaign_spec import TABLE1_CELLS
 from softsig_service.objects import object_from_json
 from softsig_service.objects.schema import object_json
-from softsig_service.services.job_files import list_files, media_type, resolve_file
+from softsig_service.services.job_files import MEDIA_TYPES, list_files, media_type, resolve_file
+from softsig_service.services.tasks import model_settings
 
 router = APIRouter(prefix="/v1", tags=["jobs"])
 JobId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="a job's id")]
@@ -45,6 +48,11 @@ def _hand_for_job(ctx: AppContext, name: str) -> repo.HandRecord:
 def _hand_ref(hand: repo.HandRecord) -> str:
     """How a worker names the hand: built-in hands by name, uploaded ones by their manifest path."""
     return hand.name if hand.builtin else hand.manifest_path
+
+
+def _private(ctx: AppContext, hand: repo.HandRecord) -> dict[str, Any]:
+    """A simulation job's private parameters: how it finds the hand, and the settings that shape its models."""
+    return {"hand_ref": _hand_ref(hand), "settings": model_settings(ctx.settings)}
 
 
 def _check_trials(ctx: AppContext, n: int, what: str) -> None:
@@ -77,7 +85,7 @@ async def create_validation(ctx: Ctx, body: ValidationIn) -> JSONResponse:
         "hand": hand.name, "object": obj, "strategy": body.strategy, "sigma_r": body.sigma_r,
         "sigma_t": body.sigma_t, "trials": body.trials, "seed": body.seed,
     }  # fmt: skip
-    job = await ctx.jobs.submit("validation", params, body.time_limit, private={"hand_ref": _hand_ref(hand)})
+    job = await ctx.jobs.submit("validation", params, body.time_limit, private=_private(ctx, hand))
     return accepted(job)
 
 
@@ -91,10 +99,10 @@ async def create_experiment(ctx: Ctx, body: ExperimentIn) -> JSONResponse:
     202 with the job; when done its files are ``report.md`` (Table I layout, Wilson intervals, Fisher tests),
     ``results.json``, ``results.csv``, ``table1.png``, ``trials.jsonl`` and ``campaign.json``."""
     _require_kind(ctx, "experiment")
-    _check_trials(ctx, 18 * body.trials, "the experiment (18 cells)")
+    _check_trials(ctx, TABLE1_CELLS * body.trials, f"the experiment ({TABLE1_CELLS} cells)")
     hand = await run_in_threadpool(_hand_for_job, ctx, body.hand)
     params = {"name": body.name, "hand": hand.name, "trials": body.trials, "seed": body.seed, "workers": body.workers}
-    job = await ctx.jobs.submit("experiment", params, body.time_limit, private={"hand_ref": _hand_ref(hand)})
+    job = await ctx.jobs.submit("experiment", params, body.time_limit, private=_private(ctx, hand))
     return accepted(job)
 
 
@@ -143,10 +151,17 @@ def job_files(ctx: Ctx, job_id: JobId, limit: Limit = DEFAULT_LIMIT, offset: Off
     return page(items, limit, offset)
 
 
+FILE_CONTENT = {
+    media: {"schema": {"type": "string", "format": "binary"}}
+    for media in sorted({*MEDIA_TYPES.values(), "application/octet-stream"})
+}
+"""The media types a result file is served in (by its suffix, :data:`MEDIA_TYPES`; others as octet-stream)."""
+
+
 @router.get(
     "/jobs/{job_id}/files/{name:path}",
     response_class=FileResponse,
-    **read_route({200: {"description": "the file", "content": {"application/octet-stream": {}}}}),
+    **read_route({200: {"description": "the file, in the media type of its suffix", "content": FILE_CONTENT}}),
     summary="Download a job's result file",
 )
 async def job_file(ctx: Ctx, job_id: JobId, name: str) -> FileResponse:

@@ -233,7 +233,7 @@ def latest_signature(ctx: Ctx, hand: HandPath, response: Response, kind: KindQue
 
 
 @router.get(
-    "/hands/{hand}/signatures/{version}",
+    "/hands/{hand}/signatures/{version:int}",  # digits only: the literal routes beside it answer 405, not 422
     response_model=SignatureOut,
     **read_route(),
     summary="Get one signature version",
