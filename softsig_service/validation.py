@@ -25,13 +25,16 @@ def field_path(loc: Sequence[int | str], tags: Collection[str] = ()) -> tuple[st
     parts = list(loc)
     where = str(parts.pop(0)) if parts and parts[0] in LOCATIONS else "body"
     out = ""
+    after_tag = False  # a tag is followed by a field of its member, which may share its name ("points")
     for k, part in enumerate(parts):
         if isinstance(part, int):
             out += f"[{part}]"
-        elif part in tags and (k == 0 or isinstance(parts[k - 1], str)) and k < len(parts) - 1:
+        elif part in tags and not after_tag and (k == 0 or isinstance(parts[k - 1], str)) and k < len(parts) - 1:
+            after_tag = True
             continue
         else:
             out += ("." if out else "") + str(part)
+        after_tag = False
     return where, out or "$"
 
 

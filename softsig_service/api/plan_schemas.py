@@ -12,14 +12,16 @@ from typing import Any, Literal
 from pydantic import Field
 
 from softsig_service.api.schemas import ClosureCriterion, CsMethod, HandName, JointAngle, Out, PoseOut, Vector3
-from softsig_service.objects.schema import Integer, ObjectSpec, Strict
+from softsig_service.objects.schema import Integer, ObjectSpec, SceneFields
 
 
-class PlanIn(Strict):
+class PlanIn(SceneFields):
     """A top-grasp request (docs/design.md §6): hand, object on the table, strategy S (bounding box), C (closure
     signature) or R (robust to the stated pose uncertainty ``sigma_r``, ``sigma_t``, with the hand's capture
     model on this object: ``capture_version``, or the newest capture signature of the hand for an object of the
-    same shape, size, mass and friction), the UR5's current joints ``current_q`` [rad] (default: home)."""
+    same shape, size, mass and friction), the UR5's current joints ``current_q`` [rad] (default: home). The object
+    may be a point cloud in a camera's frame (``frame_id``, with that frame's pose in ``frames``); the table top is
+    at ``table.height``."""
 
     hand: HandName
     object: ObjectSpec

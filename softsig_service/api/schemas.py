@@ -23,6 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from softsig_service.objects.schema import (
     Integer,
     ObjectSpec,
+    SceneFields,
     Strict,
 )
 from softsig_service.signatures.capture import MIN_CAPTURE_STEP
@@ -222,7 +223,7 @@ class SignatureList(Out):
 # ----------------------------------------------------------------------------------------------------------
 
 
-class ValidationIn(Strict):
+class ValidationIn(SceneFields):
     """Validate a plan in MuJoCo (docs/design.md §7): plan the grasp of ``object`` with ``strategy``, then run
     ``trials`` rollouts with the simulated object perturbed by yaw ~ N(0, sigma_r^2) [rad] and x, y ~ N(0, sigma_t^2)
     [m]."""

@@ -12,8 +12,11 @@ import numpy as np
 from pydantic import ValidationError
 
 from softsig_service.errors import InvalidInput
+from softsig_service.geometry.content_cache import ContentCache, content_digest
 from softsig_service.objects.checks import check_mesh, check_number
+from softsig_service.objects.cloud import CloudSolid, conservative_solid
 from softsig_service.objects.constructors import box, cylinder, ellipsoid, mesh, sphere
+from softsig_service.objects.frames import Frames, to_world
 from softsig_service.objects.schema import OBJECT_SPEC, UNION_TAGS
 from softsig_service.objects.shape import (
     BUILTIN_NAMES,
@@ -50,10 +53,15 @@ def builtin_object(
     return object_from_json(spec, table_height=table_height)
 
 
-def object_from_json(spec: Mapping[str, Any], *, table_height: float = 0.0, field: str = "object") -> TableObject:
+def object_from_json(
+    spec: Mapping[str, Any], *, table_height: float = 0.0, frames: Frames | None = None, field: str = "object"
+) -> TableObject:
     """Build a :class:`TableObject` from a JSON spec (schema in the module docstring).
 
-    ``field`` is the spec's dotted path in the request, used in error messages.
+    ``table_height`` [m]: the table top in ``base_link``. ``frames``: poses in ``base_link`` of the frames the spec
+    may name in ``frame_id`` (:mod:`softsig_service.objects.frames`). ``field`` is the spec's dotted path in the
+    request, used in error messages. A point cloud (``"points"``) becomes the mesh of its conservative solid
+    (:mod:`softsig_service.objects.cloud`).
     """
     if not isinstance(spec, Mapping):
         raise InvalidInput("expected an object spec (a JSON object)", field=field, value=spec)
@@ -71,6 +79,8 @@ def object_from_json(spec: Mapping[str, Any], *, table_height: float = 0.0, fiel
         base = dict(_BUILTINS[model.name], name=model.name)
         base.update({k: spec[k] for k in ("mass", "friction", "pose") if k in spec})
         return object_from_json(base, table_height=table_height, field=field)
+    if kind == "points":
+        return _cloud_object(model, check_number(table_height, "table_height"), frames, field)
 
     pose = model.pose
     common: dict[str, Any] = {
@@ -92,3 +102,26 @@ def object_from_json(spec: Mapping[str, Any], *, table_height: float = 0.0, fiel
         return ellipsoid(model.radii, model.mass, **common)
     V, F = check_mesh(np.asarray(model.vertices, dtype=np.float64), np.asarray(model.faces), field)
     return mesh(V, F, model.mass, **common)
+
+
+_SOLIDS: ContentCache[CloudSolid] = ContentCache(size=16)
+"""Conservative solids by the digest of their points (in ``base_link``), table height and filter flag: a cloud sent
+again (another strategy, another plan) is not filtered and hulled again."""
+
+
+def _cloud_object(model: Any, table_height: float, frames: Frames | None, field: str) -> TableObject:
+    """The mesh object of a point cloud's conservative solid, resting on the table."""
+    points = to_world(np.asarray(model.points, dtype=np.float64), model.frame_id, frames, f"{field}.frame_id")
+    flags = np.array([table_height, float(model.filter_outliers)])
+    solid = _SOLIDS.get(
+        content_digest(points, flags),
+        lambda: conservative_solid(
+            points, table_height, filter_outliers=model.filter_outliers, field=f"{field}.points"
+        ),
+    )
+    lo, hi = solid.vertices.min(axis=0), solid.vertices.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    return mesh(
+        solid.vertices - centre, solid.faces, model.mass, friction=model.friction, x=float(centre[0]),
+        y=float(centre[1]), yaw=0.0, table_height=table_height, name=model.name or "points",
+    )  # fmt: skip

@@ -15,6 +15,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, TypeAdapter
 
 from softsig_service.objects.checks import MAX_ANGLE
+from softsig_service.objects.cloud import MAX_POINTS
 
 
 def _integral(value: Any) -> Any:
@@ -101,6 +102,72 @@ class MeshSpec(_ObjectBase):
     faces: list[tuple[Index, Index, Index]] = Field(min_length=1, max_length=200_000)
 
 
+FRAME_PATTERN = r"^[A-Za-z_][A-Za-z0-9_/.\-]{0,127}$"
+"""Names of frames (ROS tf names: REP 105's ``base_link``, ``camera_color_optical_frame``, ...)."""
+FrameId = Annotated[str, Field(pattern=FRAME_PATTERN, description="a frame's name (base_link or one of frames)")]
+WORLD_FRAME = "base_link"
+"""The frame every answer is in: the UR5's base (z up)."""
+
+
+class PointsSpec(Strict):
+    """A segmented point cloud of one object: ``points`` [m] in ``frame_id`` (``base_link``, or a frame whose pose
+    the request gives in ``frames``). softsig plans and simulates its conservative solid: the convex hull of the
+    points (after a statistical outlier filter, unless ``filter_outliers`` is false) and of their projection onto the
+    table (docs/objects.md)."""
+
+    kind: Literal["points"]
+    points: list[tuple[Coordinate, Coordinate, Coordinate]] = Field(min_length=4, max_length=MAX_POINTS)
+    frame_id: FrameId = WORLD_FRAME
+    filter_outliers: bool = Field(True, strict=True, description="drop statistical outliers before the hull")
+    mass: Mass
+    friction: float = Field(1.0, gt=0.0, le=10.0, strict=True, description="sliding friction coefficient")
+    name: str = Field("", max_length=64)
+
+
+class Position(Strict):
+    """A position [m] (geometry_msgs/Point)."""
+
+    x: Coordinate
+    y: Coordinate
+    z: Coordinate
+
+
+class Orientation(Strict):
+    """A unit quaternion, geometry_msgs order (normalised when within 1e-3 of unit length)."""
+
+    x: float = Field(ge=-1.001, le=1.001, strict=True)
+    y: float = Field(ge=-1.001, le=1.001, strict=True)
+    z: float = Field(ge=-1.001, le=1.001, strict=True)
+    w: float = Field(ge=-1.001, le=1.001, strict=True)
+
+
+class FramePose(Strict):
+    """The pose of a frame in ``base_link`` (geometry_msgs/Pose), as a robot stack's tf gives it."""
+
+    position: Position
+    orientation: Orientation
+
+
+class Table(Strict):
+    """The table: its top is the horizontal plane ``z = height`` [m] in ``base_link``."""
+
+    height: Coordinate = 0.0
+
+
+MAX_FRAMES = 64
+"""Most frames a request may give."""
+
+
+class SceneFields(Strict):
+    """What a request says of the scene besides its objects: the table and the frames its geometry may be in."""
+
+    table: Table = Field(default_factory=Table, description="the table top (its height in base_link)")
+    frames: dict[Annotated[str, Field(pattern=FRAME_PATTERN)], FramePose] = Field(
+        default_factory=dict, max_length=MAX_FRAMES,
+        description="poses in base_link of the frames an object's frame_id may name (tf, geometry_msgs order)",
+    )  # fmt: skip
+
+
 class BuiltinObjectSpec(Strict):
     """One of the objects of docs/design.md §7 (box, apple, cylinder), optionally with another mass, friction or
     pose."""
@@ -113,10 +180,10 @@ class BuiltinObjectSpec(Strict):
 
 
 ObjectSpec = Annotated[
-    BoxSpec | CylinderSpec | SphereSpec | EllipsoidSpec | MeshSpec | BuiltinObjectSpec,
+    BoxSpec | CylinderSpec | SphereSpec | EllipsoidSpec | MeshSpec | PointsSpec | BuiltinObjectSpec,
     Field(discriminator="kind"),
 ]
-UNION_TAGS: frozenset[str] = frozenset({"box", "cylinder", "sphere", "ellipsoid", "mesh", "builtin"})
+UNION_TAGS: frozenset[str] = frozenset({"box", "cylinder", "sphere", "ellipsoid", "mesh", "points", "builtin"})
 """Discriminator values: pydantic puts them in error locations; field paths leave them out."""
 
 

@@ -26,6 +26,9 @@ JSON schema of :func:`object_from_json` (unknown keys are rejected)::
     {"kind": "ellipsoid", "radii": [rx, ry, rz],               ...}   semi-axes [m]
     {"kind": "mesh",      "vertices": [[x, y, z], ...],
                           "faces": [[i, j, k], ...],           ...}   triangles, 0-based vertex indices
+    {"kind": "points",    "points": [[x, y, z], ...], "frame_id": "base_link",
+                          "filter_outliers": true,             ...}   a segmented cloud: planned as its conservative
+                                                                      solid, a mesh (objects/cloud.py, docs/objects.md)
     {"kind": "builtin",   "name": "box" | "apple" | "cylinder", ...}  the objects of docs/design.md §7
     common keys: "mass": kg (> 0; required except for builtin), "friction": (> 0, default 1.0),
                  "name": str, "pose": {"x": m, "y": m, "yaw": rad, "z": m (optional centre height)}

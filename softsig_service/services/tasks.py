@@ -144,7 +144,8 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     run_trial` (plan on the nominal pose, object perturbed by yaw ~ N(0, sigma_r^2) [rad], x, y ~ N(0, sigma_t^2)
     [m]), trial ``k`` seeded as ``softsig validate`` seeds it (same seed, same outcomes).
 
-    ``params``: ``hand_ref`` (name or manifest path), ``object`` (object JSON), ``strategy``, ``sigma_r``,
+    ``params``: ``hand_ref`` (name or manifest path), ``object`` (object JSON in ``base_link``), ``table_height``
+    [m], ``strategy``, ``sigma_r``,
     ``sigma_t``, ``trials``, ``seed``, ``settings`` (:func:`model_settings`). Writes ``validation.json`` (every
     trial's record) and ``outcomes.csv``.
     """
@@ -155,7 +156,7 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     from softsig_service.experiments.trial import run_trial
     from softsig_service.objects import object_from_json
 
-    obj = object_from_json(params["object"])
+    obj = object_from_json(params["object"], table_height=float(params.get("table_height", 0.0)))
     trials, seed = int(params["trials"]), int(params["seed"])
     settings = job_settings(params)
     results = []

@@ -26,11 +26,11 @@ from softsig_service.api.deps import Ctx
 from softsig_service.api.plan_schemas import PlanIn, PlanList, PlanOut
 from softsig_service.api.routes.common import problem, read_route, write_route
 from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page_of
+from softsig_service.api.scene import scene_object
 from softsig_service.api.schemas import HAND_NAME_PATTERN
 from softsig_service.config import Settings
 from softsig_service.errors import HandNotFound, InvalidInput, NotFound
 from softsig_service.objects import TableObject
-from softsig_service.objects.schema import object_json
 from softsig_service.services.plan_image import render_plan_png
 from softsig_service.services.serialize import to_jsonable, vectors_as_objects
 from softsig_service.signatures.capture import CaptureModel
@@ -147,20 +147,20 @@ PLANNER_FIELDS = (
     "cs_criterion", "placement",
 )  # fmt: skip
 """The fields of a plan request (``PlanIn``) that reach the planner (``PlanRequest``) as they are, by the same
-name. The others are resolved by the route first: ``hand`` (the registry's manifest and revision), ``object`` (parsed),
+name. The others are resolved by the route first: ``hand`` (the registry's manifest and revision), ``object`` (parsed
+over ``table`` in the ``frames`` given),
 ``capture_version`` (the capture model), or are the route's own (``store``); ``tests/api/test_api_contract.py``
 keeps the two lists complete and apart."""
-ROUTE_FIELDS = ("hand", "object", "capture_version", "store")
+ROUTE_FIELDS = ("hand", "object", "capture_version", "store", "frames", "table")
 """The fields of ``PlanIn`` the route resolves or keeps for itself (see :data:`PLANNER_FIELDS`)."""
 
 
 def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRef) -> dict[str, Any]:
     """Plan ``body`` for the registered ``hand`` with the app's planner and store it (unless ``store`` is false);
     the plan JSON."""
-    from softsig_service.objects import object_from_json
     from softsig_service.planning.request import PlanRequest
 
-    obj = object_from_json(object_json(body.object))
+    obj = scene_object(body.object, body)
     capture = capture_model(ctx, hand, obj, body.capture_version) if body.strategy == "R" else None
     options = body.model_dump(include=set(PLANNER_FIELDS))
     request = PlanRequest(hand=hand.manifest_path, obj=obj, capture=capture, hand_revision=hand.token, **options)

@@ -1,0 +1,19 @@
+"""The scene of a request: its object in ``base_link``, on its table, from whichever frame it was given in."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel
+
+from softsig_service.objects import TableObject
+from softsig_service.objects.schema import SceneFields, object_json
+
+
+def scene_object(spec: BaseModel, scene: SceneFields) -> TableObject:
+    """The object ``spec`` (an :data:`~softsig_service.objects.schema.ObjectSpec`) of a request with ``scene``'s
+    ``table`` and ``frames`` (plans, validations): in ``base_link``, on the table; a point cloud becomes its
+    conservative solid. Raises :class:`~softsig_service.errors.InvalidInput` naming the field."""
+    from softsig_service.objects import object_from_json
+    from softsig_service.objects.frames import frame_transforms
+
+    frames = frame_transforms(scene.model_dump(include={"frames"})["frames"])
+    return object_from_json(object_json(spec), table_height=scene.table.height, frames=frames)
