@@ -48,6 +48,8 @@ def plan(
     x: Annotated[float, typer.Option("--x", help="object centre x in base_link [m]")] = 0.5,
     y: Annotated[float, typer.Option("--y", help="object centre y in base_link [m]")] = 0.0,
     yaw: Annotated[float, typer.Option("--yaw", help="object yaw about world z [rad]")] = 0.0,
+    mass: Annotated[float | None, typer.Option("--mass", help="mass of an object file's object [kg]")] = None,
+    scale: Annotated[float, typer.Option("--scale", help="scale of an object file's coordinates")] = 1.0,
     strategy: StrategyOption = "C",
     current_q: Annotated[
         str | None, typer.Option("--current-q", help="current UR5 joints q1,...,q6 [rad] (default: home)")
@@ -67,7 +69,7 @@ def plan(
 
     with _errors():
         q = parse_floats(current_q, 6, "current_q") if current_q is not None else None
-        target = _object_arg(obj, x, y, yaw)
+        target = _object_arg(obj, x, y, yaw, mass=mass, scale=scale)
         model = read_capture(capture, hand=hand, obj=target, strategy=strategy)
         request = PlanRequest(
             hand=hand, obj=target, strategy=strategy,  # type: ignore[arg-type]

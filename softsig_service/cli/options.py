@@ -49,21 +49,31 @@ def text_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, s
     return lines
 
 
-def parse_object(spec: str, x: float, y: float, yaw: float) -> Any:
-    """``box|apple|cylinder`` or a path to an object JSON, placed at (x, y, yaw) on the table."""
+def parse_object(spec: str, x: float, y: float, yaw: float, *, mass: float | None = None, scale: float = 1.0) -> Any:
+    """``box|apple|cylinder``, a path to an object JSON, or a mesh or cloud file (``.stl``, ``.obj``, ``.ply``,
+    ``.pcd``; :mod:`softsig_service.objects.files`; ``mass`` [kg] required, ``scale`` on its coordinates). A
+    primitive or mesh is placed at (x, y, yaw) on the table; a cloud's points are taken in ``base_link`` as they
+    are."""
     from softsig_service.objects import BUILTIN_NAMES, builtin_object, object_from_json
+    from softsig_service.objects.files import SUFFIXES, object_from_file
 
     if spec in BUILTIN_NAMES:
         return builtin_object(spec, x=x, y=y, yaw=yaw)
     path = Path(spec)
-    if not path.suffix == ".json" or not path.is_file():
-        raise InvalidInput("object must be a built-in name or a JSON file", field="object", value=spec,
-                           choices=[*BUILTIN_NAMES, "PATH.json"])  # fmt: skip
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"object file is not valid JSON: {exc}", field="object", value=spec) from None
-    if isinstance(data, dict):
+    if path.suffix.lower() not in (".json", *SUFFIXES) or not path.is_file():
+        choices = [*BUILTIN_NAMES, "PATH.json", *(f"PATH{s}" for s in SUFFIXES)]
+        raise InvalidInput("object must be a built-in name, an object JSON or a mesh or cloud file", field="object",
+                           value=spec, choices=choices)  # fmt: skip
+    if path.suffix.lower() == ".json":
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise InvalidInput(f"object file is not valid JSON: {exc}", field="object", value=spec) from None
+    else:
+        if mass is None:
+            raise InvalidInput("a mesh or cloud file needs the object's mass (--mass, kg)", field="mass")
+        data = object_from_file(path.read_bytes(), path.name, mass=mass, scale=scale, field="object")
+    if isinstance(data, dict) and data.get("kind") != "points":
         data = {**data, "pose": {**data.get("pose", {}), "x": x, "y": y, "yaw": yaw}}
     return object_from_json(data)
 
@@ -87,7 +97,9 @@ StrategyOption = Annotated[
 ]
 HandOption = Annotated[str, typer.Option("--hand", help="built-in name or path to hand.toml")]
 HandArgument = Annotated[str, typer.Argument(help="built-in name or path to hand.toml")]
-ObjectOption = Annotated[str, typer.Option("--object", help="box | apple | cylinder | PATH.json")]
+ObjectOption = Annotated[
+    str, typer.Option("--object", help="box | apple | cylinder | PATH.json | PATH.stl|.obj|.ply|.pcd (with --mass)")
+]
 CaptureOption = Annotated[
     Path | None,
     typer.Option(
