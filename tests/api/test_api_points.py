@@ -145,3 +145,25 @@ def test_a_cloud_of_the_most_points_plans(api: TestClient) -> None:
     extents = np.ptp(np.array(r.json()["object"]["vertices"]), axis=0)
     assert np.all(np.abs(extents - SIZE) < 0.004), extents  # noise of 0.5 mm, outliers filtered
     assert math.isclose(r.json()["object"]["mass"], 0.15)
+
+
+def test_a_validation_simulates_the_clouds_solid(api: TestClient) -> None:
+    """The validation job gets the object in base_link: the cloud's solid, as a mesh, over the stated table."""
+    from api_helpers import wait_for
+
+    cloud = {"kind": "points", "points": _in_camera(_seen_box((0.5, 0.0, -0.08 + SIZE[2] / 2))), "frame_id": "cam",
+             "mass": 0.15}  # fmt: skip
+    body = {"hand": "parallel_gripper", "object": cloud, "strategy": "S", "trials": 1,
+            "frames": {"cam": _camera_frame()}, "table": {"height": -0.08}}  # fmt: skip
+    r = api.post("/v1/validations", json=body, headers=AUTH)
+    assert r.status_code == 202, r.text
+    assert r.json()["params"]["object"]["kind"] == "mesh" and r.json()["params"]["table_height"] == -0.08
+
+    def finished() -> dict[str, Any] | None:
+        job: dict[str, Any] = api.get(f"/v1/jobs/{r.json()['id']}").json()
+        return job if job["status"] not in ("queued", "running") else None
+
+    job = wait_for(finished, timeout=240)
+    assert job["status"] == "succeeded", job
+    details = api.get(f"/v1/jobs/{job['id']}/files/validation.json").json()["details"][0]
+    assert details["plan_reasons"] == [], details
