@@ -29,7 +29,7 @@ def field_path(loc: Sequence[int | str], tags: Collection[str] = ()) -> tuple[st
     for k, part in enumerate(parts):
         if isinstance(part, int):
             out += f"[{part}]"
-        elif part in tags and not after_tag and (k == 0 or isinstance(parts[k - 1], str)) and k < len(parts) - 1:
+        elif part in tags and not after_tag and k < len(parts) - 1:
             after_tag = True
             continue
         else:

@@ -12,7 +12,7 @@ from typing import Any, Literal
 from pydantic import Field
 
 from softsig_service.api.schemas import ClosureCriterion, CsMethod, HandName, JointAngle, Out, PoseOut, Vector3
-from softsig_service.objects.schema import Integer, ObjectSpec, SceneFields
+from softsig_service.objects.schema import MAX_OBSTACLES, Integer, ObjectSpec, SceneFields
 
 
 class PlanIn(SceneFields):
@@ -26,6 +26,11 @@ class PlanIn(SceneFields):
     hand: HandName
     object: ObjectSpec
     strategy: Literal["S", "C", "R"]
+    obstacles: list[ObjectSpec] = Field(
+        default_factory=list, max_length=MAX_OBSTACLES,
+        description="other objects on the table (same table and frames): no arm link or hand shape comes within "
+        "margin of one (reason collision:obstacle[i])",
+    )  # fmt: skip
     sigma_r: float = Field(0.0, ge=0.0, le=1.0, strict=True, description="std. dev. of the object's yaw [rad] (R)")
     sigma_t: float = Field(0.0, ge=0.0, le=1.0, strict=True, description="std. dev. of its x and y [m] (R)")
     capture_version: Integer | None = Field(

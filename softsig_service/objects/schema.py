@@ -156,6 +156,8 @@ class Table(Strict):
 
 MAX_FRAMES = 64
 """Most frames a request may give."""
+MAX_OBSTACLES = 32
+"""Most obstacles a plan takes."""
 
 
 class SceneFields(Strict):

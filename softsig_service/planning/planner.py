@@ -108,6 +108,23 @@ class Planner:
         by_height[key] = world  # re-inserted: the dict's order is the order of use
         return world
 
+    def _obstacle_world(self, model: HandPlanningModel, table_height: float) -> CollisionWorld:
+        """This thread's world for checking the hand ``model`` and the arm against obstacles over a table at
+        ``table_height`` [m] (one obstacle at a time as its object; the world keeps the shapes it has built)."""
+        worlds: weakref.WeakKeyDictionary[HandPlanningModel, dict[float, CollisionWorld]] | None = getattr(
+            self._local, "obstacle_worlds", None
+        )
+        if worlds is None:
+            worlds = self._local.obstacle_worlds = weakref.WeakKeyDictionary()
+        by_height = worlds.setdefault(model, {})
+        key = round(table_height, 6)
+        world = by_height.get(key)
+        if world is None:
+            world = by_height[key] = CollisionWorld(self.ur5, model.shapes, table_height=table_height)
+            while len(by_height) > WORLDS_PER_MODEL:
+                del by_height[next(iter(by_height))]
+        return world
+
     def _hand(self, model: HandPlanningModel) -> HandGeometry:
         """The hand's clearance geometry, built once per hand and shared by every thread."""
         hand = self._hands.get(model)
@@ -232,7 +249,21 @@ class Planner:
         t1 = time.perf_counter()
         if path is not None:
             self._check(c, world, path)
+            if not c.reasons and req.obstacles:
+                self._check_obstacles(c, req, path)
         return t1 - t0, time.perf_counter() - t1
+
+    def _check_obstacles(self, c: _Candidate, req: PlanRequest, path: list[NDArray[np.float64]]) -> None:
+        """Every arm link and hand shape against each obstacle, along the whole approach and at the grasp, with
+        the plan's margin [m]: the hand may touch its target, never an obstacle."""
+        model = planning_model(req.hand, req.cs_method, self.settings, req.cs_criterion, req.hand_revision)
+        world = self._obstacle_world(model, req.obj.table_height)
+        Q = np.array(path)
+        for i, obstacle in enumerate(req.obstacles):
+            world.set_object_unchecked(obstacle.primitive(), obstacle.primitive_pose)
+            report = world.check_waypoints(Q, margin=req.margin, check_table=False, check_self=False, distances=False)
+            if report.in_collision:
+                c.reasons.append(f"collision:obstacle[{i}]")
 
     def check_wrist_pose(self, req: PlanRequest, T_grasp: NDArray[np.float64]) -> list[str]:
         """Reasons why the grasp flange pose ``T_grasp`` (4x4, world) fails for ``req`` (empty: feasible).

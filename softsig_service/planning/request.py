@@ -20,6 +20,7 @@ from softsig_service.geometry.checks import as_finite_array
 from softsig_service.geometry.quaternions import rotation_to_quat
 from softsig_service.geometry.transforms import pose_wire
 from softsig_service.objects import TableObject
+from softsig_service.objects.schema import MAX_OBSTACLES
 from softsig_service.planning.hand_model import DEFAULT_PLACEMENT, PLACEMENTS, Placement
 from softsig_service.planning.strategies import STRATEGIES
 from softsig_service.signatures.capture import CaptureModel
@@ -55,6 +56,9 @@ class PlanRequest:
     relative_pose: tuple[float, float, float] | None = None
     """Put the hand at this relative pose (theta [rad], u, v [m]; :mod:`softsig_service.signatures.capture`)
     instead of the strategy's choice (diagnostics and the capture model's simulations)."""
+    obstacles: tuple[TableObject, ...] = ()
+    """Other objects on the table (in ``base_link``, on the same table): no arm link or hand shape may come within
+    ``margin`` of one anywhere on the approach or at the grasp (reason ``collision:obstacle[i]``, ``i`` its index)."""
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGIES:
@@ -64,6 +68,12 @@ class PlanRequest:
                 raise InvalidInput("must be a finite number in [0, 1]", field=name, value=value)
         if self.strategy == "R" and self.capture is None and self.relative_pose is None:
             raise InvalidInput("strategy R needs the hand's capture model on this object", field="capture")
+        object.__setattr__(self, "obstacles", tuple(self.obstacles))
+        if len(self.obstacles) > MAX_OBSTACLES:
+            raise InvalidInput(f"at most {MAX_OBSTACLES} obstacles", field="obstacles", value=len(self.obstacles))
+        for i, obstacle in enumerate(self.obstacles):
+            if not isinstance(obstacle, TableObject):
+                raise InvalidInput("expected an object", field=f"obstacles[{i}]", value=repr(obstacle))
         if self.relative_pose is not None:
             rel = as_finite_array(self.relative_pose, (3,), "relative_pose")
             object.__setattr__(self, "relative_pose", tuple(float(x) for x in rel))

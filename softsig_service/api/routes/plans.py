@@ -26,7 +26,7 @@ from softsig_service.api.deps import Ctx
 from softsig_service.api.plan_schemas import PlanIn, PlanList, PlanOut
 from softsig_service.api.routes.common import problem, read_route, write_route
 from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page_of
-from softsig_service.api.scene import scene_object
+from softsig_service.api.scene import scene_object, scene_obstacles
 from softsig_service.api.schemas import HAND_NAME_PATTERN
 from softsig_service.config import Settings
 from softsig_service.errors import HandNotFound, InvalidInput, NotFound
@@ -151,7 +151,7 @@ name. The others are resolved by the route first: ``hand`` (the registry's manif
 over ``table`` in the ``frames`` given),
 ``capture_version`` (the capture model), or are the route's own (``store``); ``tests/api/test_api_contract.py``
 keeps the two lists complete and apart."""
-ROUTE_FIELDS = ("hand", "object", "capture_version", "store", "frames", "table")
+ROUTE_FIELDS = ("hand", "object", "capture_version", "store", "frames", "table", "obstacles")
 """The fields of ``PlanIn`` the route resolves or keeps for itself (see :data:`PLANNER_FIELDS`)."""
 
 
@@ -161,9 +161,12 @@ def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRef) -> dict[str, An
     from softsig_service.planning.request import PlanRequest
 
     obj = scene_object(body.object, body)
+    obstacles = scene_obstacles(body.obstacles, body)
     capture = capture_model(ctx, hand, obj, body.capture_version) if body.strategy == "R" else None
     options = body.model_dump(include=set(PLANNER_FIELDS))
-    request = PlanRequest(hand=hand.manifest_path, obj=obj, capture=capture, hand_revision=hand.token, **options)
+    request = PlanRequest(
+        hand=hand.manifest_path, obj=obj, capture=capture, hand_revision=hand.token, obstacles=obstacles, **options
+    )
     plan = ctx.planner.plan(request)  # thread-safe: per-thread solvers and collision worlds, no lock
     ctx.metrics.plan_seconds.labels(body.strategy).observe(plan.timing.get("total", 0.0))
     data: dict[str, Any] = vectors_as_objects(to_jsonable(plan.to_json_dict()))
