@@ -23,8 +23,8 @@ def _cloud_post(y: float) -> dict[str, Any]:
     top = np.c_[rng.uniform(-0.05, 0.05, n), rng.uniform(-0.02, 0.02, n), np.full(n, 0.12)]
     side = np.c_[rng.uniform(-0.05, 0.05, n), np.full(n, -0.02), rng.uniform(0, 0.12, n)]
     corners = np.array([[a * 0.05, b * 0.02, 0.12] for a in (-1, 1) for b in (-1, 1)])
-    world = np.vstack([top, side, corners]) + [0.5, y, 0.0]
-    in_frame = (world - [0.0, 0.0, 1.0]) * [1.0, -1.0, -1.0]  # R_x(pi) is its own inverse
+    world = np.vstack([top, side, corners]) + np.array([0.5, y, 0.0])
+    in_frame = (world - np.array([0.0, 0.0, 1.0])) * np.array([1.0, -1.0, -1.0])  # R_x(pi) is its own inverse
     return {"kind": "points", "points": in_frame.tolist(), "frame_id": "overhead", "mass": 0.5,
             "filter_outliers": False}  # fmt: skip
 
