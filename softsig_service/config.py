@@ -70,8 +70,8 @@ class Settings(BaseSettings):
         True, description="updates and deletes of a hand without If-Match get 428 (Precondition Required)"
     )
     max_body_bytes: int = Field(
-        20_000_000, gt=0, description="largest request body except uploads [bytes]: admits the documented maxima "
-        "(a 200k-point cloud, a 100k-vertex mesh) written with full-precision numbers",
+        25_000_000, gt=0, description="largest request body except uploads [bytes]: admits the documented maxima "
+        "(a whole 640x480 tabletop cloud, a 200k-point object cloud, a 100k-vertex mesh) at full precision",
     )  # fmt: skip
     max_upload_bytes: int = Field(
         110_000_000, gt=0, description="largest multipart upload (hand files, marker files) [bytes]"

@@ -149,9 +149,9 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
     )
     install_problem_handlers(app)
     install_docs(app)
-    from softsig_service.api.routes import hands, jobs, ops, plans, signatures
+    from softsig_service.api.routes import hands, jobs, ops, plans, scenes, signatures
 
-    routers = (ops.router, hands.router, signatures.router, plans.router, jobs.router)
+    routers = (ops.router, hands.router, signatures.router, plans.router, scenes.router, jobs.router)
     for router in routers:
         app.include_router(router)
     templates = [route for router in routers for route in router.routes]

@@ -26,3 +26,19 @@ def scene_object(spec: BaseModel, scene: SceneFields, field: str = "object") -> 
 def scene_obstacles(specs: Sequence[BaseModel], scene: SceneFields) -> tuple[TableObject, ...]:
     """The ``obstacles`` of a request, each as :func:`scene_object` makes it (fields ``obstacles[i]...``)."""
     return tuple(scene_object(spec, scene, f"obstacles[{i}]") for i, spec in enumerate(specs))
+
+
+def scene_objects(
+    spec: BaseModel, obstacles: Sequence[BaseModel], scene: SceneFields
+) -> tuple[TableObject, tuple[TableObject, ...]]:
+    """A plan's target and obstacles. A ``tabletop`` target brings the other clusters of its cloud as obstacles
+    (first) and its table plane: the request's ``obstacles`` are then placed on that table."""
+    from softsig_service.objects.frames import frame_transforms
+    from softsig_service.objects.parse import tabletop_objects
+
+    if getattr(spec, "kind", None) != "tabletop":
+        return scene_object(spec, scene), scene_obstacles(obstacles, scene)
+    frames = frame_transforms(scene.model_dump(include={"frames"})["frames"])
+    target, others, seg = tabletop_objects(object_json(spec), frames)
+    on_its_table = scene.model_copy(update={"table": scene.table.model_copy(update={"height": seg.height})})
+    return target, (*others, *scene_obstacles(obstacles, on_its_table))

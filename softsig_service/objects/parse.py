@@ -18,6 +18,7 @@ from softsig_service.objects.cloud import CloudSolid, conservative_solid
 from softsig_service.objects.constructors import box, cylinder, ellipsoid, mesh, sphere
 from softsig_service.objects.frames import Frames, to_world
 from softsig_service.objects.schema import OBJECT_SPEC, UNION_TAGS
+from softsig_service.objects.segmentation import Segmentation
 from softsig_service.objects.shape import (
     BUILTIN_NAMES,
     DEFAULT_X,
@@ -81,6 +82,8 @@ def object_from_json(
         return object_from_json(base, table_height=table_height, field=field)
     if kind == "points":
         return _cloud_object(model, check_number(table_height, "table_height"), frames, field)
+    if kind == "tabletop":
+        return tabletop_objects(spec, frames, field)[0]
 
     pose = model.pose
     common: dict[str, Any] = {
@@ -119,9 +122,50 @@ def _cloud_object(model: Any, table_height: float, frames: Frames | None, field:
             points, table_height, filter_outliers=model.filter_outliers, field=f"{field}.points"
         ),
     )
+    return solid_object(solid, table_height, model.mass, model.friction, model.name or "points")
+
+
+def solid_object(solid: CloudSolid, table_height: float, mass: float, friction: float, name: str) -> TableObject:
+    """The mesh object of a conservative solid (vertices in ``base_link``), resting on the table."""
     lo, hi = solid.vertices.min(axis=0), solid.vertices.max(axis=0)
     centre = 0.5 * (lo + hi)
     return mesh(
-        solid.vertices - centre, solid.faces, model.mass, friction=model.friction, x=float(centre[0]),
-        y=float(centre[1]), yaw=0.0, table_height=table_height, name=model.name or "points",
+        solid.vertices - centre, solid.faces, mass, friction=friction, x=float(centre[0]), y=float(centre[1]),
+        yaw=0.0, table_height=table_height, name=name,
     )  # fmt: skip
+
+
+_TABLETOPS: ContentCache[Segmentation] = ContentCache(size=8)
+"""Segmentations by the digest of their points (in ``base_link``) and parameters."""
+
+
+def tabletop_objects(
+    spec: Mapping[str, Any], frames: Frames | None = None, field: str = "object"
+) -> tuple[TableObject, list[TableObject], Segmentation]:
+    """A ``tabletop`` spec's target (the cluster it picks, with its ``mass``, ``friction`` and ``name``), the other
+    clusters as obstacles (mass and friction of the target), and the segmentation
+    (:mod:`softsig_service.objects.segmentation`); every object rests on the table plane found."""
+    from softsig_service.objects.segmentation import pick_target, segment_tabletop
+
+    try:
+        model = OBJECT_SPEC.validate_python(dict(spec))
+    except ValidationError as exc:
+        raise invalid_input(exc, field, UNION_TAGS) from None
+    points = to_world(np.asarray(model.points, dtype=np.float64), model.frame_id, frames, f"{field}.frame_id")
+    params = (model.plane_tolerance, model.cluster_distance, model.min_points, model.filter_outliers)
+
+    def build() -> Segmentation:
+        return segment_tabletop(
+            points, plane_tolerance=params[0], cluster_distance=params[1], min_points=params[2],
+            filter_outliers=params[3], field=f"{field}.points",
+        )  # fmt: skip
+
+    seg = _TABLETOPS.get(content_digest(points, np.array(params, dtype=np.float64)), build)
+    near = None if model.pick.near is None else np.array([model.pick.near.x, model.pick.near.y, model.pick.near.z])
+    target = pick_target(seg, index=model.pick.index, near=near, field=f"{field}.pick")
+    names = [(model.name or "target") if c.index == target else f"cluster_{c.index}" for c in seg.clusters]
+    objects = [
+        solid_object(c.solid, seg.height, model.mass, model.friction, name)
+        for c, name in zip(seg.clusters, names, strict=True)
+    ]
+    return objects[target], [o for k, o in enumerate(objects) if k != target], seg

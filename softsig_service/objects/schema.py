@@ -154,6 +154,36 @@ class Table(Strict):
     height: Coordinate = 0.0
 
 
+MAX_TABLETOP_POINTS = 640 * 480
+"""Most points of a tabletop cloud: a whole VGA depth frame."""
+
+
+class TabletopPick(Strict):
+    """Which cluster of a tabletop is the target: ``index`` (largest first), or the one whose centroid is nearest
+    ``near`` [m, base_link]; neither: the largest."""
+
+    index: Integer | None = Field(None, ge=0, le=1000, strict=True)
+    near: Position | None = None
+
+
+class TabletopSpec(Strict):
+    """A whole tabletop cloud (table and objects) in ``frame_id``: softsig finds the table plane (RANSAC), clusters
+    what stands on it (DBSCAN), plans for the cluster ``pick`` names and keeps the others as obstacles
+    (docs/objects.md). ``mass`` and ``friction`` are the target's."""
+
+    kind: Literal["tabletop"]
+    points: list[tuple[Coordinate, Coordinate, Coordinate]] = Field(min_length=20, max_length=MAX_TABLETOP_POINTS)
+    frame_id: FrameId = WORLD_FRAME
+    pick: TabletopPick = Field(default_factory=lambda: TabletopPick())
+    plane_tolerance: float = Field(0.008, ge=0.001, le=0.05, strict=True, description="[m] table inliers")
+    cluster_distance: float = Field(0.015, ge=0.002, le=0.1, strict=True, description="[m] DBSCAN radius")
+    min_points: Integer = Field(50, ge=4, le=100_000, strict=True, description="smallest cluster [points]")
+    filter_outliers: bool = Field(True, strict=True, description="drop statistical outliers of each cluster")
+    mass: Mass
+    friction: float = Field(1.0, gt=0.0, le=10.0, strict=True, description="sliding friction coefficient")
+    name: str = Field("", max_length=64)
+
+
 MAX_FRAMES = 64
 """Most frames a request may give."""
 MAX_OBSTACLES = 32
@@ -182,10 +212,12 @@ class BuiltinObjectSpec(Strict):
 
 
 ObjectSpec = Annotated[
-    BoxSpec | CylinderSpec | SphereSpec | EllipsoidSpec | MeshSpec | PointsSpec | BuiltinObjectSpec,
+    BoxSpec | CylinderSpec | SphereSpec | EllipsoidSpec | MeshSpec | PointsSpec | TabletopSpec | BuiltinObjectSpec,
     Field(discriminator="kind"),
 ]
-UNION_TAGS: frozenset[str] = frozenset({"box", "cylinder", "sphere", "ellipsoid", "mesh", "points", "builtin"})
+UNION_TAGS: frozenset[str] = frozenset(
+    {"box", "cylinder", "sphere", "ellipsoid", "mesh", "points", "tabletop", "builtin"}
+)
 """Discriminator values: pydantic puts them in error locations; field paths leave them out."""
 
 

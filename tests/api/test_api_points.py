@@ -17,6 +17,7 @@ from softsig_service.config import Settings
 from softsig_service.geometry.quaternions import matrix_to_quat
 from softsig_service.geometry.transforms import rpy_to_matrix
 from softsig_service.objects.cloud import MAX_POINTS
+from softsig_service.objects.schema import MAX_TABLETOP_POINTS
 
 SIZE = (0.16, 0.06, 0.05)  # the built-in box [m]
 CAMERA_R = rpy_to_matrix(-2.3, 0.05, 0.4)  # an optical frame (z forward) looking down at the table from the front
@@ -127,7 +128,10 @@ def test_the_documented_maxima_fit_the_default_body_limit() -> None:
              "points": [point] * MAX_POINTS, "frame_id": "camera_color_optical_frame", "name": "x" * 64}}  # fmt: skip
     mesh = {"hand": "pisa_iit_softhand", "strategy": "C", "object": {"kind": "mesh", "mass": 1000.0,
             "vertices": [point] * 100_000, "faces": [[99_999, 99_998, 99_997]] * 200_000}}  # fmt: skip
-    for body in (cloud, mesh):
+    tabletop = {"hand": "pisa_iit_softhand", "strategy": "C", "object": {"kind": "tabletop", "mass": 1000.0,
+                "points": [point] * MAX_TABLETOP_POINTS, "frame_id": "camera_color_optical_frame",
+                "pick": {"near": {"x": _worst_number(1), "y": _worst_number(2), "z": _worst_number(3)}}}}  # fmt: skip
+    for body in (cloud, mesh, tabletop):
         assert len(json.dumps(body)) < limit
 
 

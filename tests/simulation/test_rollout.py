@@ -213,7 +213,10 @@ def test_validate_object_file_and_errors(cli: typer.Typer, tmp_path: Path) -> No
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout)["object"]["size"] == [0.12, 0.05, 0.05]
     res = CliRunner().invoke(cli, ["validate", "--hand", "parallel_gripper", "--object", "ball"])
-    assert res.exit_code == 2 and "valid: PATH.json, apple, box, cylinder" in res.output
+    assert (
+        res.exit_code == 2
+        and "valid: PATH.json, PATH.obj, PATH.pcd, PATH.ply, PATH.stl, apple, box, cylinder" in res.output
+    )
     res = CliRunner().invoke(cli, ["validate", "--hand", "no_such_hand", "--object", "box"])
     assert res.exit_code == 2 and "unknown hand" in res.output
     res = CliRunner().invoke(cli, ["validate", "--hand", "parallel_gripper", "--object", "box", "--strategy", "X"])
