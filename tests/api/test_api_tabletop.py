@@ -106,3 +106,25 @@ def test_a_picked_index_out_of_range_is_named(api: TestClient) -> None:
     body = {"hand": "parallel_gripper", "strategy": "S",
             "object": {"kind": "tabletop", "points": _tabletop().tolist(), "mass": 0.1, "pick": {"index": 7}}}  # fmt: skip
     assert assert_problem(api.post("/v1/plans", json=body, headers=AUTH), 422)["field"] == "object.pick.index"
+
+
+def test_a_rendered_depth_image_plans_over_rest(api: TestClient) -> None:
+    """The simulated camera's cloud (every other pixel of a 640 x 480 depth image with a clutter object), in its
+    optical frame with the frame's pose as tf gives it, plans the box."""
+    from softsig_service.geometry.quaternions import matrix_to_quat
+    from softsig_service.objects import builtin_object, cylinder
+    from softsig_service.simulation.depth_camera import DepthCamera, depth_to_points, look_at, render_depth
+
+    T = look_at([0.5, -0.45, 0.55], [0.5, 0.0, 0.0])
+    scene = [builtin_object("box", x=0.5, y=0.0, yaw=0.3), cylinder(0.03, 0.12, 0.2, standing=True, x=0.5, y=0.16)]
+    cloud = depth_to_points(render_depth(scene, T, DepthCamera(), seed=1), stride=2)
+    w, x, y, z = matrix_to_quat(T[:3, :3])
+    frame = {"position": dict(zip("xyz", T[:3, 3].tolist(), strict=True)), "orientation": {"x": x, "y": y, "z": z,
+                                                                                          "w": w}}  # fmt: skip
+    body = {"hand": "pisa_iit_softhand", "strategy": "C", "store": False,
+            "object": {"kind": "tabletop", "points": cloud.tolist(), "frame_id": "camera_depth_optical_frame",
+                       "mass": 0.15, "pick": {"near": {"x": 0.5, "y": 0.0, "z": 0.0}}},
+            "frames": {"camera_depth_optical_frame": frame}}  # fmt: skip
+    r = api.post("/v1/plans", json=body, headers=AUTH)
+    assert r.status_code == 200 and r.json()["success"], r.text[:400]
+    assert abs(r.json()["object"]["pose"]["x"] - 0.5) < 0.005 and abs(r.json()["object"]["pose"]["y"]) < 0.005
