@@ -86,6 +86,8 @@ def object_from_json(
         return tabletop_objects(spec, frames, field)[0]
 
     pose = model.pose
+    if pose.orientation is not None:
+        return _turned(model, check_number(table_height, "table_height"), field)
     common: dict[str, Any] = {
         "friction": model.friction,
         "x": pose.x,
@@ -169,3 +171,49 @@ def tabletop_objects(
         for c, name in zip(seg.clusters, names, strict=True)
     ]
     return objects[target], [o for k, o in enumerate(objects) if k != target], seg
+
+
+TURNED_SECTIONS = 48
+"""Facets around a turned cylinder's axis (its mesh is within 0.2% of its radius, inside it)."""
+TURNED_SUBDIVISIONS = 3
+"""Subdivisions of the icosphere of a turned sphere or ellipsoid (642 vertices)."""
+
+
+def _turned(model: Any, table_height: float, field: str) -> TableObject:
+    """The object of a spec whose pose has an ``orientation``: its shape in its own frame (a primitive as a mesh:
+    exact for a box, :data:`TURNED_SECTIONS` facets around a cylinder, an icosphere of :data:`TURNED_SUBDIVISIONS`
+    for a sphere or ellipsoid), turned by the quaternion and placed at (x, y) and the given centre height ``z`` or
+    resting on the table; a mesh with vertical z and yaw 0 from then on."""
+    import trimesh
+
+    pose = model.pose
+    if pose.yaw != 0.0:
+        raise InvalidInput("give yaw or orientation, not both", field=f"{field}.pose.yaw", value=pose.yaw)
+    q = pose.orientation
+    norm = float(np.linalg.norm([q.w, q.x, q.y, q.z]))
+    if abs(norm - 1.0) > 1e-3:
+        raise InvalidInput(f"the orientation is not a unit quaternion (norm {norm:.6g})",
+                           field=f"{field}.pose.orientation", value=[q.x, q.y, q.z, q.w])  # fmt: skip
+    from softsig_service.geometry.quaternions import quat_to_matrix
+
+    R = quat_to_matrix(np.array([q.w, q.x, q.y, q.z]) / norm)
+    kind = model.kind
+    if kind == "box":
+        shape = trimesh.creation.box(extents=model.size)
+    elif kind == "cylinder":
+        shape = trimesh.creation.cylinder(radius=model.radius, height=model.length, sections=TURNED_SECTIONS)
+        if model.orientation == "lying":  # the object's x is a lying cylinder's axis
+            shape.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0]))
+    elif kind in ("sphere", "ellipsoid"):
+        shape = trimesh.creation.icosphere(subdivisions=TURNED_SUBDIVISIONS)
+        shape.apply_scale(model.radius if kind == "sphere" else np.asarray(model.radii))
+    else:
+        V0, F0 = check_mesh(np.asarray(model.vertices, dtype=np.float64), np.asarray(model.faces), field)
+        shape = trimesh.Trimesh(V0 - 0.5 * (V0.min(axis=0) + V0.max(axis=0)), F0, process=False)
+    V = np.asarray(shape.vertices, dtype=np.float64) @ R.T
+    lo, hi = V.min(axis=0), V.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    return mesh(
+        V - centre, np.asarray(shape.faces), model.mass, friction=model.friction, x=pose.x, y=pose.y, yaw=0.0,
+        table_height=table_height, z=pose.z, name=model.name or kind,
+    )  # fmt: skip

@@ -47,14 +47,34 @@ class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
+class Position(Strict):
+    """A position [m] (geometry_msgs/Point)."""
+
+    x: Coordinate
+    y: Coordinate
+    z: Coordinate
+
+
+class Orientation(Strict):
+    """A unit quaternion, geometry_msgs order (normalised when within 1e-3 of unit length)."""
+
+    x: float = Field(ge=-1.001, le=1.001, strict=True)
+    y: float = Field(ge=-1.001, le=1.001, strict=True)
+    z: float = Field(ge=-1.001, le=1.001, strict=True)
+    w: float = Field(ge=-1.001, le=1.001, strict=True)
+
+
 class ObjectPose(Strict):
-    """Placement of an object on the table: centre (x, y) [m] in ``base_link``, ``yaw`` [rad] about world z, and
-    optionally the centre height ``z`` [m] (default: resting on the table)."""
+    """Placement of an object: centre (x, y) [m] in ``base_link``, ``yaw`` [rad] about world z, and optionally the
+    centre height ``z`` [m] (default: resting on the table). ``orientation`` (a quaternion, instead of ``yaw``)
+    turns the object's frame fully, as a mug on its side or a box on its edge: the object is then planned and
+    simulated as the mesh of its turned shape (docs/objects.md)."""
 
     x: Coordinate = 0.5
     y: Coordinate = 0.0
     yaw: Angle = 0.0
     z: Coordinate | None = None
+    orientation: Orientation | None = None
 
 
 class _ObjectBase(Strict):
@@ -122,23 +142,6 @@ class PointsSpec(Strict):
     mass: Mass
     friction: float = Field(1.0, gt=0.0, le=10.0, strict=True, description="sliding friction coefficient")
     name: str = Field("", max_length=64)
-
-
-class Position(Strict):
-    """A position [m] (geometry_msgs/Point)."""
-
-    x: Coordinate
-    y: Coordinate
-    z: Coordinate
-
-
-class Orientation(Strict):
-    """A unit quaternion, geometry_msgs order (normalised when within 1e-3 of unit length)."""
-
-    x: float = Field(ge=-1.001, le=1.001, strict=True)
-    y: float = Field(ge=-1.001, le=1.001, strict=True)
-    z: float = Field(ge=-1.001, le=1.001, strict=True)
-    w: float = Field(ge=-1.001, le=1.001, strict=True)
 
 
 class FramePose(Strict):
