@@ -21,6 +21,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from softsig_service.objects.schema import (
+    MAX_OBSTACLES,
     Integer,
     ObjectSpec,
     SceneFields,
@@ -231,6 +232,10 @@ class ValidationIn(SceneFields):
     hand: HandName = "pisa_iit_softhand"
     object: ObjectSpec
     strategy: Literal["S", "C"]
+    obstacles: list[ObjectSpec] = Field(
+        default_factory=list, max_length=MAX_OBSTACLES,
+        description="other objects on the table: planned around, simulated as free bodies that can be pushed",
+    )  # fmt: skip
     sigma_r: float = Field(0.0, ge=0.0, le=3.2, strict=True, description="[rad]")
     sigma_t: float = Field(0.0, ge=0.0, le=0.5, strict=True, description="[m]")
     trials: Integer = Field(1, ge=1, le=100_000, strict=True)

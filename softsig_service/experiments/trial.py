@@ -14,7 +14,7 @@ import math
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -117,6 +117,7 @@ def run_trial(
     frame_period: float = 1.0 / 30.0,
     plan_options: Mapping[str, Any] | None = None,
     perturbation: Perturbation | None = None,
+    obstacles: Sequence[TableObject] = (),
 ) -> TrialResult:
     """Run one trial (module docstring) of ``hand`` grasping ``obj`` (its nominal pose) with ``strategy``.
 
@@ -126,6 +127,8 @@ def run_trial(
     ``plan_options`` are further :class:`PlanRequest` fields (``cs_method``, ``cs_criterion``, ``placement``,
     ``capture``...); strategy R plans for ``sigma_r`` and ``sigma_t``. ``perturbation`` moves the simulated object
     by a given offset instead of one drawn from ``seed`` and the sigmas (the capture model's simulations).
+    ``obstacles``: other objects on the table, planned around and simulated as free bodies that can be pushed (they
+    are not perturbed).
     Raises :class:`InvalidInput` for negative sigmas; never for an infeasible plan or a failed grasp.
     """
     t_wall = time.perf_counter()
@@ -150,7 +153,7 @@ def run_trial(
         if strategy == "R":
             options.setdefault("sigma_r", sigma_r)
             options.setdefault("sigma_t", sigma_t)
-        plan = planner.plan(PlanRequest(hand=hand, obj=obj, strategy=strategy, **options))
+        plan = planner.plan(PlanRequest(hand=hand, obj=obj, strategy=strategy, obstacles=tuple(obstacles), **options))
     t_plan = time.perf_counter() - t0
 
     def early(reason: str, timing: dict[str, float]) -> TrialResult:
@@ -186,7 +189,7 @@ def run_trial(
     t_ik = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    scene = build_scene(hand, obj, settings or planner.settings)
+    scene = build_scene(hand, obj, settings or planner.settings, obstacles)
     sim = simulate(scene, pert.apply(obj), approach, lift, cfg, on_frame, frame_period)
     t_sim = time.perf_counter() - t0
 

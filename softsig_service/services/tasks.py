@@ -145,7 +145,7 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     [m]), trial ``k`` seeded as ``softsig validate`` seeds it (same seed, same outcomes).
 
     ``params``: ``hand_ref`` (name or manifest path), ``object`` (object JSON in ``base_link``), ``table_height``
-    [m], ``strategy``, ``sigma_r``,
+    [m], ``obstacles`` (object JSON, optional), ``strategy``, ``sigma_r``,
     ``sigma_t``, ``trials``, ``seed``, ``settings`` (:func:`model_settings`). Writes ``validation.json`` (every
     trial's record) and ``outcomes.csv``.
     """
@@ -156,7 +156,10 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     from softsig_service.experiments.trial import run_trial
     from softsig_service.objects import object_from_json
 
-    obj = object_from_json(params["object"], table_height=float(params.get("table_height", 0.0)))
+    table = float(params.get("table_height", 0.0))
+    obj = object_from_json(params["object"], table_height=table)
+    obstacles = [object_from_json(o, table_height=table, field=f"obstacles[{i}]")
+                 for i, o in enumerate(params.get("obstacles", []))]  # fmt: skip
     trials, seed = int(params["trials"]), int(params["seed"])
     settings = job_settings(params)
     results = []
@@ -164,7 +167,7 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     for k in range(trials):
         result = run_trial(
             str(params["hand_ref"]), obj, params["strategy"], seed=trial_seed(seed, (), k),
-            sigma_r=float(params["sigma_r"]), sigma_t=float(params["sigma_t"]), settings=settings,
+            sigma_r=float(params["sigma_r"]), sigma_t=float(params["sigma_t"]), settings=settings, obstacles=obstacles,
         )  # fmt: skip
         results.append(result)
         ctx.progress((k + 1) / trials, f"{k + 1} of {trials} trials")

@@ -44,6 +44,7 @@ from __future__ import annotations
 import hashlib
 import threading
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from pathlib import Path
 
 import mujoco
@@ -53,6 +54,7 @@ from softsig_service.arm.robots_dir import URDF_RELATIVE, find_robots_dir
 from softsig_service.arm.ur5 import FLANGE_FRAME, JOINT_NAMES
 from softsig_service.config import Settings, default_settings
 from softsig_service.errors import InvalidHandModel
+from softsig_service.geometry.quaternions import matrix_to_quat
 from softsig_service.hands.manifest import load_manifest
 from softsig_service.hands.model import HandModel, compile_hand, load_hand, resolve_hand_path
 from softsig_service.objects import TableObject
@@ -145,7 +147,23 @@ def _add_object(spec: mujoco.MjSpec, obj: TableObject) -> None:
     geom.rgba = [0.85, 0.35, 0.2, 1.0]
 
 
-def _compose(hand_ref: str, obj: TableObject, settings: Settings) -> Scene:
+def _add_obstacle(spec: mujoco.MjSpec, k: int, obstacle: TableObject) -> None:
+    """Obstacle ``k``: a free body at its pose (the model's initial pose), colliding as the object does."""
+    T = obstacle.primitive_pose
+    body = spec.worldbody.add_body(name=f"{OBSTACLE_BODY}{k}", pos=T[:3, 3].tolist(),
+                                   quat=matrix_to_quat(T[:3, :3]).tolist())  # fmt: skip
+    body.add_freejoint(name=f"{OBSTACLE_BODY}{k}_free")
+    geom = body.add_geom(name=f"{OBSTACLE_BODY}{k}_geom")
+    set_object_shape(spec, geom, obstacle.primitive(), f"{OBSTACLE_BODY}{k}_mesh")
+    geom.mass = obstacle.mass
+    geom.friction = [obstacle.friction, OBJECT_TORSIONAL_FRICTION, OBJECT_ROLLING_FRICTION]
+    geom.condim = 4
+    geom.contype = ENV_BIT
+    geom.conaffinity = ENV_BIT | ARM_BIT
+    geom.rgba = [0.35, 0.45, 0.7, 1.0]
+
+
+def _compose(hand_ref: str, obj: TableObject, settings: Settings, obstacles: Sequence[TableObject] = ()) -> Scene:
     spec = _ur5_spec(settings.robots_dir)
     spec.modelname = "softsig_validation"
     spec.compiler.degree = False
@@ -179,6 +197,8 @@ def _compose(hand_ref: str, obj: TableObject, settings: Settings) -> Scene:
     cam.mode = mujoco.mjtCamLight.mjCAMLIGHT_TARGETBODY
     cam.targetbody = OBJECT_BODY
     _add_object(spec, obj)
+    for k, obstacle in enumerate(obstacles):
+        _add_obstacle(spec, k, obstacle)
     try:
         model = spec.compile()
     except ValueError as exc:
@@ -260,24 +280,30 @@ def _shape_key(obj: TableObject) -> tuple[object, ...]:
     )
 
 
-def build_scene(hand_ref: str, obj: TableObject, settings: Settings | None = None) -> Scene:
+def build_scene(
+    hand_ref: str, obj: TableObject, settings: Settings | None = None, obstacles: Sequence[TableObject] = ()
+) -> Scene:
     """The scene for ``hand_ref`` (built-in name or manifest path) and the shape of ``obj`` (its pose is not
-    part of the model: place it with :meth:`Scene.make_data`). Compiled once per process and reused for every
-    object of the same shape, mass, friction and table height (thread-safe)."""
+    part of the model: place it with :meth:`Scene.make_data`), with ``obstacles`` as free bodies starting at their
+    poses (those are part of the model). Compiled once per process and reused for every object of the same shape,
+    mass, friction and table height among the same obstacles (thread-safe)."""
     settings = settings or default_settings()
     path = resolve_hand_path(hand_ref, settings)
+    around = tuple((_shape_key(o), tuple(np.round(o.primitive_pose, 12).ravel().tolist())) for o in obstacles)
     key = (hand_ref, str(path), path.stat().st_mtime_ns, str(settings.hands_dir), str(settings.robots_dir),
-           settings.limits, _shape_key(obj))  # fmt: skip
+           settings.limits, _shape_key(obj), around)  # fmt: skip
     with _CACHE_LOCK:
         scene = _CACHE.get(key)
         if scene is None:
-            scene = _compose(hand_ref, obj, settings)
+            scene = _compose(hand_ref, obj, settings, obstacles)
             if len(_CACHE) >= _CACHE_SIZE:
                 _CACHE.pop(next(iter(_CACHE)))
             _CACHE[key] = scene
     return scene
 
 
+OBSTACLE_BODY = "obstacle_"
+"""Name prefix of the obstacles' bodies (``obstacle_0``, ...)."""
 _CACHE: dict[tuple[object, ...], Scene] = {}
 _CACHE_SIZE = 32
 _CACHE_LOCK = threading.Lock()

@@ -62,3 +62,21 @@ def test_a_bad_obstacle_is_422_naming_its_field(api: TestClient) -> None:
     assert assert_problem(api.post("/v1/plans", json=body, headers=AUTH), 422)["field"] == "obstacles[0].frame_id"
     body["obstacles"] = [_post(0.3)] * 33
     assert assert_problem(api.post("/v1/plans", json=body, headers=AUTH), 422)["field"] == "obstacles"
+
+
+def test_a_validation_plans_around_and_simulates_its_obstacles(api: TestClient) -> None:
+    from api_helpers import wait_for
+
+    body = {"hand": "parallel_gripper", "object": BOX, "strategy": "S", "trials": 1,
+            "obstacles": [_cloud_post(0.06)], "frames": {"overhead": OVERHEAD}}  # fmt: skip
+    r = api.post("/v1/validations", json=body, headers=AUTH)
+    assert r.status_code == 202, r.text
+    assert r.json()["params"]["obstacles"][0]["kind"] == "mesh"  # the cloud's solid, in base_link
+
+    def finished() -> dict[str, Any] | None:
+        job: dict[str, Any] = api.get(f"/v1/jobs/{r.json()['id']}").json()
+        return job if job["status"] not in ("queued", "running") else None
+
+    job = wait_for(finished, timeout=240)
+    assert job["status"] == "succeeded", job
+    assert job["result"]["outcomes"][0]["reason"] == "collision:obstacle[0]"  # planned around: nothing was left
