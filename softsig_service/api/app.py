@@ -45,8 +45,8 @@ from softsig_service.services.retention import purge_old, retention_loop
 
 log = logging.getLogger("softsig.api")
 
-UPLOAD_PATHS: tuple[str, ...] = (r"/v1/hands", r"/v1/hands/archive", r"/v1/hands/[^/]+")
-"""Paths whose bodies are multipart uploads of hands (limit ``max_upload_bytes``)."""
+UPLOAD_PATHS: tuple[str, ...] = (r"/v1/hands", r"/v1/hands/archive", r"/v1/hands/[^/]+", r"/v1/objects/files")
+"""Paths whose bodies are multipart uploads of hands and object files (limit ``max_upload_bytes``)."""
 MARKERS_PATH = r"/v1/hands/[^/]+/signatures/markers"
 """The marker upload (limit ``max_markers_bytes``)."""
 
@@ -142,6 +142,7 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
         openapi_tags=[
             {"name": "hands", "description": "the hand registry: built-in and uploaded hands"},
             {"name": "signatures", "description": "versioned closure and stiffness signatures of a hand"},
+            {"name": "objects", "description": "registered objects: geometry sent once, named by id in plans"},
             {"name": "plans", "description": "top-grasp planning for the UR5 (strategies S and C)"},
             {"name": "jobs", "description": "validations and experiments in MuJoCo, run as jobs"},
             {"name": "operations", "description": "health, readiness and metrics"},
@@ -149,9 +150,9 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
     )
     install_problem_handlers(app)
     install_docs(app)
-    from softsig_service.api.routes import hands, jobs, ops, plans, scenes, signatures
+    from softsig_service.api.routes import hands, jobs, objects, ops, plans, scenes, signatures
 
-    routers = (ops.router, hands.router, signatures.router, plans.router, scenes.router, jobs.router)
+    routers = (ops.router, hands.router, signatures.router, objects.router, plans.router, scenes.router, jobs.router)
     for router in routers:
         app.include_router(router)
     templates = [route for router in routers for route in router.routes]

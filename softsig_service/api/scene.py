@@ -1,35 +1,71 @@
 """The scene of a request: its object and obstacles in ``base_link``, on its table, from whichever frame they were
-given in."""
+given in, registered objects (``{"kind": "stored", "id": ...}``) looked up."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 from pydantic import BaseModel
 
+from softsig_service.api.context import AppContext
+from softsig_service.errors import InvalidInput, NotFound
 from softsig_service.objects import TableObject
 from softsig_service.objects.schema import SceneFields, object_json
 
+StoredLookup = Callable[[str], dict[str, Any]]
+"""A registered object's JSON by its id (raises :class:`NotFound` for an unknown one)."""
 
-def scene_object(spec: BaseModel, scene: SceneFields, field: str = "object") -> TableObject:
+
+def stored_objects(ctx: AppContext) -> StoredLookup:
+    """The lookup of the objects registered with the service of ``ctx``."""
+    from softsig_service import registry as repo
+
+    return lambda object_id: repo.get_object(ctx.registry, object_id).spec
+
+
+def _json(spec: BaseModel, stored: StoredLookup | None, field: str) -> dict[str, Any]:
+    """The object JSON of ``spec``; a stored object's is its registered JSON with the request's pose, mass or
+    friction in place of its own."""
+    data = object_json(spec)
+    if data.get("kind") != "stored":
+        return data
+    if stored is None:
+        raise InvalidInput("registered objects are not taken here", field=f"{field}.kind", value="stored")
+    try:
+        registered = dict(stored(data["id"]))
+    except NotFound:
+        raise InvalidInput("no object is registered under this id", field=f"{field}.id", value=data["id"]) from None
+    for key in ("pose", "mass", "friction"):
+        if key in data:
+            registered[key] = data[key]
+    return registered
+
+
+def scene_object(
+    spec: BaseModel, scene: SceneFields, field: str = "object", stored: StoredLookup | None = None
+) -> TableObject:
     """The object ``spec`` (an :data:`~softsig_service.objects.schema.ObjectSpec`) of a request with ``scene``'s
     ``table`` and ``frames`` (plans, validations): in ``base_link``, on the table; a point cloud becomes its
-    conservative solid. Raises :class:`~softsig_service.errors.InvalidInput` naming the field (``field`` its
-    path)."""
+    conservative solid, a stored object is found with ``stored``. Raises
+    :class:`~softsig_service.errors.InvalidInput` naming the field (``field`` its path)."""
     from softsig_service.objects import object_from_json
     from softsig_service.objects.frames import frame_transforms
 
     frames = frame_transforms(scene.model_dump(include={"frames"})["frames"])
-    return object_from_json(object_json(spec), table_height=scene.table.height, frames=frames, field=field)
+    data = _json(spec, stored, field)
+    return object_from_json(data, table_height=scene.table.height, frames=frames, field=field)
 
 
-def scene_obstacles(specs: Sequence[BaseModel], scene: SceneFields) -> tuple[TableObject, ...]:
+def scene_obstacles(
+    specs: Sequence[BaseModel], scene: SceneFields, stored: StoredLookup | None = None
+) -> tuple[TableObject, ...]:
     """The ``obstacles`` of a request, each as :func:`scene_object` makes it (fields ``obstacles[i]...``)."""
-    return tuple(scene_object(spec, scene, f"obstacles[{i}]") for i, spec in enumerate(specs))
+    return tuple(scene_object(spec, scene, f"obstacles[{i}]", stored) for i, spec in enumerate(specs))
 
 
 def scene_objects(
-    spec: BaseModel, obstacles: Sequence[BaseModel], scene: SceneFields
+    spec: BaseModel, obstacles: Sequence[BaseModel], scene: SceneFields, stored: StoredLookup | None = None
 ) -> tuple[TableObject, tuple[TableObject, ...]]:
     """A plan's target and obstacles. A ``tabletop`` target brings the other clusters of its cloud as obstacles
     (first) and its table plane: the request's ``obstacles`` are then placed on that table."""
@@ -37,8 +73,8 @@ def scene_objects(
     from softsig_service.objects.parse import tabletop_objects
 
     if getattr(spec, "kind", None) != "tabletop":
-        return scene_object(spec, scene), scene_obstacles(obstacles, scene)
+        return scene_object(spec, scene, stored=stored), scene_obstacles(obstacles, scene, stored)
     frames = frame_transforms(scene.model_dump(include={"frames"})["frames"])
     target, others, seg = tabletop_objects(object_json(spec), frames)
     on_its_table = scene.model_copy(update={"table": scene.table.model_copy(update={"height": seg.height})})
-    return target, (*others, *scene_obstacles(obstacles, on_its_table))
+    return target, (*others, *scene_obstacles(obstacles, on_its_table, stored))

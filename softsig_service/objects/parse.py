@@ -84,6 +84,9 @@ def object_from_json(
         return _cloud_object(model, check_number(table_height, "table_height"), frames, field)
     if kind == "tabletop":
         return tabletop_objects(spec, frames, field)[0]
+    if kind == "stored":
+        raise InvalidInput("a stored object is found in the service's registry (POST /v1/objects)",
+                           field=f"{field}.kind", value=kind)  # fmt: skip
 
     pose = model.pose
     if pose.orientation is not None:

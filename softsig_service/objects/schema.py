@@ -203,6 +203,22 @@ class SceneFields(Strict):
     )  # fmt: skip
 
 
+OBJECT_ID_PATTERN = r"^[0-9a-f]{32}$"
+"""Ids of registered objects."""
+
+
+class StoredObjectSpec(Strict):
+    """An object registered with ``POST /v1/objects``, by ``id``: at the pose it was registered at, or at ``pose``;
+    optionally with another ``mass`` or ``friction``. Its geometry is sent once, its collision structures are built
+    once."""
+
+    kind: Literal["stored"]
+    id: str = Field(pattern=OBJECT_ID_PATTERN, description="the id POST /v1/objects answered")
+    pose: ObjectPose | None = None
+    mass: Mass | None = None
+    friction: float | None = Field(None, gt=0.0, le=10.0, strict=True)
+
+
 class BuiltinObjectSpec(Strict):
     """One of the objects of docs/design.md §7 (box, apple, cylinder), optionally with another mass, friction or
     pose."""
@@ -215,11 +231,19 @@ class BuiltinObjectSpec(Strict):
 
 
 ObjectSpec = Annotated[
-    BoxSpec | CylinderSpec | SphereSpec | EllipsoidSpec | MeshSpec | PointsSpec | TabletopSpec | BuiltinObjectSpec,
+    BoxSpec
+    | CylinderSpec
+    | SphereSpec
+    | EllipsoidSpec
+    | MeshSpec
+    | PointsSpec
+    | TabletopSpec
+    | StoredObjectSpec
+    | BuiltinObjectSpec,
     Field(discriminator="kind"),
 ]
 UNION_TAGS: frozenset[str] = frozenset(
-    {"box", "cylinder", "sphere", "ellipsoid", "mesh", "points", "tabletop", "builtin"}
+    {"box", "cylinder", "sphere", "ellipsoid", "mesh", "points", "tabletop", "stored", "builtin"}
 )
 """Discriminator values: pydantic puts them in error locations; field paths leave them out."""
 

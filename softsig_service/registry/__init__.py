@@ -49,6 +49,7 @@ from softsig_service.registry.models import (
     UTCDateTime,
     utcnow,
 )
+from softsig_service.registry.objects import ObjectRecord, add_object, delete_object, get_object, list_objects
 from softsig_service.registry.plans import PlanRecord, add_plan, delete_plan, get_plan, list_plans, purge_plans
 from softsig_service.registry.signatures import (
     SignatureRecord,
@@ -69,6 +70,7 @@ __all__ = [
     "IdempotencyRow",
     "JobRecord",
     "JobRow",
+    "ObjectRecord",
     "PlanRecord",
     "PlanRow",
     "Registry",
@@ -79,6 +81,7 @@ __all__ = [
     "UTCDateTime",
     "add_hand",
     "add_job",
+    "add_object",
     "add_plan",
     "add_signature",
     "alembic_config",
@@ -87,12 +90,14 @@ __all__ = [
     "complete_key",
     "current_revision",
     "delete_hand",
+    "delete_object",
     "delete_plan",
     "etag_matches",
     "fill_object_digests",
     "find_key",
     "get_hand",
     "get_job",
+    "get_object",
     "get_plan",
     "get_signature",
     "hand_names",
@@ -103,6 +108,7 @@ __all__ = [
     "latest_signature",
     "list_hands",
     "list_jobs",
+    "list_objects",
     "list_plans",
     "list_signatures",
     "make_engine",

@@ -115,6 +115,20 @@ class PlanRow(Base):
     created_at: Mapped[datetime] = mapped_column(UTCDateTime, nullable=False, default=utcnow)
 
 
+class ObjectRow(Base):
+    """A registered object: its geometry as the planner takes it (a mesh, a primitive), sent once."""
+
+    __tablename__ = "objects"
+    __table_args__ = (Index("ix_objects_created_at", "created_at"),)
+
+    id: Mapped[str] = mapped_column(String(32), primary_key=True)
+    name: Mapped[str] = mapped_column(String(64), nullable=False)
+    source: Mapped[str] = mapped_column(String(16), nullable=False)
+    spec: Mapped[dict[str, Any]] = mapped_column(JSON, nullable=False)
+    table_height: Mapped[float] = mapped_column(Float, nullable=False)
+    created_at: Mapped[datetime] = mapped_column(UTCDateTime, nullable=False, default=utcnow)
+
+
 class JobRow(Base):
     """A job: long work run in a worker process."""
 

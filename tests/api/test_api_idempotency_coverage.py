@@ -46,6 +46,13 @@ def _markers(time_scale: float) -> bytes:
     return ("\n".join(rows) + "\n").encode()
 
 
+def _obj_box(size: float) -> bytes:
+    """A cube of side ``size`` [m] as an OBJ file."""
+    import trimesh
+
+    return str(trimesh.creation.box(extents=(size, size, size)).export(file_type="obj")).encode()
+
+
 Request = dict[str, Any]
 SAMPLES: dict[str, Callable[[TestClient], tuple[str, Request, Request]]] = {
     "/v1/hands": lambda api: (
@@ -77,6 +84,16 @@ SAMPLES: dict[str, Callable[[TestClient], tuple[str, Request, Request]]] = {
         "/v1/hands/parallel_gripper/signatures/capture",
         {"json": {"object": BOX, "n_theta": 2, "holdout": 0}},
         {"json": {"object": BOX, "n_theta": 3, "holdout": 0}},
+    ),
+    "/v1/objects": lambda api: (
+        "/v1/objects",
+        {"json": {"object": BOX}},
+        {"json": {"object": {"kind": "builtin", "name": "apple"}}},
+    ),
+    "/v1/objects/files": lambda api: (
+        "/v1/objects/files",
+        {"files": {"file": ("box.obj", _obj_box(0.1))}, "data": {"mass": "0.1"}, "headers": MULTIPART},
+        {"files": {"file": ("box.obj", _obj_box(0.2))}, "data": {"mass": "0.1"}, "headers": MULTIPART},
     ),
     "/v1/plans": lambda api: (
         "/v1/plans",

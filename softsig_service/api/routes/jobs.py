@@ -26,7 +26,7 @@ from softsig_service.api.deps import Ctx
 from softsig_service.api.job_responses import accepted, job_out
 from softsig_service.api.routes.common import SUBMIT_JOB, problem, read_route, write_route
 from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page, page_of
-from softsig_service.api.scene import scene_objects
+from softsig_service.api.scene import scene_objects, stored_objects
 from softsig_service.api.schemas import ExperimentIn, JobFiles, JobList, JobOut, ValidationIn
 from softsig_service.errors import HandNotFound, InvalidInput, NotAvailable, NotFound
 from softsig_service.experiments.campaign_spec import TABLE1_CELLS
@@ -81,7 +81,7 @@ async def create_validation(ctx: Ctx, body: ValidationIn) -> JSONResponse:
     hand = await run_in_threadpool(_hand_for_job, ctx, body.hand)
     # bad objects fail now, naming the field; the job gets them in base_link (a cloud as its solid; a tabletop's
     # other clusters as obstacles)
-    parsed, obstacles = await run_in_threadpool(scene_objects, body.object, body.obstacles, body)
+    parsed, obstacles = await run_in_threadpool(scene_objects, body.object, body.obstacles, body, stored_objects(ctx))
     obj = object_json(body.object) if body.object.kind == "builtin" and not body.frames else parsed.to_json()
     params = {
         "hand": hand.name, "object": obj, "table_height": parsed.table_height, "strategy": body.strategy,

@@ -26,7 +26,7 @@ from softsig_service.api.deps import Ctx
 from softsig_service.api.plan_schemas import PlanIn, PlanList, PlanOut
 from softsig_service.api.routes.common import problem, read_route, write_route
 from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page_of
-from softsig_service.api.scene import scene_objects
+from softsig_service.api.scene import scene_objects, stored_objects
 from softsig_service.api.schemas import HAND_NAME_PATTERN
 from softsig_service.config import Settings
 from softsig_service.errors import HandNotFound, InvalidInput, NotFound
@@ -160,7 +160,7 @@ def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRef) -> dict[str, An
     the plan JSON."""
     from softsig_service.planning.request import PlanRequest
 
-    obj, obstacles = scene_objects(body.object, body.obstacles, body)
+    obj, obstacles = scene_objects(body.object, body.obstacles, body, stored_objects(ctx))
     capture = capture_model(ctx, hand, obj, body.capture_version) if body.strategy == "R" else None
     options = body.model_dump(include=set(PLANNER_FIELDS))
     request = PlanRequest(
