@@ -196,47 +196,65 @@ def report(summary: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def draw_views(path: Path, name: str = "box") -> None:
-    """``path`` (PNG): the camera's depth image of ``name``, its cloud seen from above coloured by height, and the
-    solid's footprint against the true object's, in base_link [m]."""
+def _outline(name: str, axis: int) -> np.ndarray:
+    """The true object's outline [m] in base_link projected on the plane of ``axis`` (2: seen from above, x-y; 0:
+    seen from the side, y-z), as a closed polyline."""
+    from softsig_service.objects import builtin_object
+
+    true = builtin_object(name)
+    c = true.center
+    t = np.linspace(0.0, 2.0 * np.pi, 120)
+    hx, hy, hz = true.half_extents
+    if true.kind == "box":
+        a, b = ((hx, hy) if axis == 2 else (hy, hz))
+        pts = np.array([[-a, -b], [a, -b], [a, b], [-a, b], [-a, -b]])
+    elif true.kind == "cylinder" and axis == 2:
+        pts = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy], [-hx, -hy]])
+    else:  # an ellipse: the apple from either side, the lying cylinder's round end from the side
+        a, b = ((hx, hy) if axis == 2 else (hy, hz))
+        pts = np.c_[a * np.cos(t), b * np.sin(t)]
+    centre = c[:2] if axis == 2 else c[1:]
+    return np.asarray(pts + centre)
+
+
+def draw_views(path: Path) -> None:
+    """``path`` (PNG): for each built-in object, the camera's depth image, the solid against the true object seen
+    from above and seen from the side (the camera on the left), in base_link [m]."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from scipy.spatial import ConvexHull
 
-    from softsig_service.objects import builtin_object
-
-    seen, depth, cloud, _ = seen_object(name)
-    true = builtin_object(name)
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.6), facecolor="white")
-    shown = np.where(depth > 0, depth, np.nan)
-    im = axes[0].imshow(shown, cmap="viridis")
-    axes[0].set_title(f"depth image, 640 x 480 (camera at {CAMERA_EYE} m)")
-    fig.colorbar(im, ax=axes[0], label="depth [m]", shrink=0.8)
-    axes[0].set_xticks([]), axes[0].set_yticks([])
-    near = cloud[(np.abs(cloud[:, 0] - 0.5) < 0.15) & (np.abs(cloud[:, 1]) < 0.12)]
-    sc = axes[1].scatter(near[:, 0], near[:, 1], c=near[:, 2], s=0.5, cmap="plasma")
-    fig.colorbar(sc, ax=axes[1], label="z [m]", shrink=0.8)
-    axes[1].set_title("cloud in base_link, seen from above")
-    V = seen.vertices + seen.center
-    hull = ConvexHull(V[:, :2])
-    axes[2].fill(*V[hull.vertices, :2].T, alpha=0.35, color="tab:orange", label="conservative solid")
-    tv = true.primitive()
-    if tv.kind == "box":
-        hx, hy, _ = tv.size
-        corners = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy], [-hx, -hy]]) + true.center[:2]
-        axes[2].plot(*corners.T, color="black", label="true object")
-    axes[2].scatter(*CAMERA_EYE[:2], marker="v", color="tab:blue")
-    axes[2].annotate("camera", CAMERA_EYE[:2], textcoords="offset points", xytext=(6, 0))
-    axes[2].set_title(f"footprint: solid {seen.extent_major * 1000:.0f} x {seen.extent_minor * 1000:.0f} mm, "
-                      f"height {seen.height * 1000:.0f} mm")  # fmt: skip
-    for ax in axes[1:]:
-        ax.set_aspect("equal")
-        ax.set_xlabel("x [m]")
-        ax.set_ylabel("y [m]")
-        ax.grid(alpha=0.3)
-    axes[2].legend(loc="upper right")
+    fig, axes = plt.subplots(len(TABLE1_OBJECTS), 3, figsize=(14, 4.2 * len(TABLE1_OBJECTS)), facecolor="white",
+                             gridspec_kw={"width_ratios": [1.35, 1, 1]})  # fmt: skip
+    for row, name in enumerate(TABLE1_OBJECTS):
+        seen, depth, cloud, _ = seen_object(name)
+        ax = axes[row, 0]
+        shown = np.where(depth > 0, depth, np.nan)
+        im = ax.imshow(shown[120:400, 160:480], cmap="viridis", vmin=0.55, vmax=0.85)
+        fig.colorbar(im, ax=ax, label="depth [m]", shrink=0.85)
+        ax.set_title(f"{name}: depth image (its centre)")
+        ax.set_xticks([])
+        ax.set_yticks([])
+        V = seen.vertices + seen.center
+        near = cloud[(np.abs(cloud[:, 0] - 0.5) < 0.12) & (np.abs(cloud[:, 1]) < 0.1) & (cloud[:, 2] > 0.004)]
+        for col, (axis, dims, label) in enumerate(((2, (0, 1), "from above"), (0, (1, 2), "from the side"))):
+            ax = axes[row, col + 1]
+            hull = ConvexHull(V[:, list(dims)])
+            ax.fill(*V[hull.vertices][:, list(dims)].T, alpha=0.35, color="tab:orange", label="solid planned with")
+            ax.scatter(near[:, dims[0]], near[:, dims[1]], s=0.3, color="tab:blue", alpha=0.4, label="points seen")
+            ax.plot(*_outline(name, axis).T, color="black", lw=1.5, label="true object")
+            ax.set_aspect("equal")
+            ax.grid(alpha=0.3)
+            ax.set_xlabel("x [m]" if axis == 2 else "y [m] (camera towards -y)")
+            ax.set_ylabel("y [m]" if axis == 2 else "z [m]")
+            ax.set_title(f"{label}: solid {seen.extent_major * 1000:.0f} x {seen.extent_minor * 1000:.0f} x "
+                         f"{seen.height * 1000:.0f} mm" if axis == 2 else f"{label}")  # fmt: skip
+            if row == 0 and col == 1:
+                ax.legend(loc="upper right", fontsize=8, markerscale=12)
+    fig.suptitle(f"What the simulated depth camera at {CAMERA_EYE} m sees of each object, and the solid planned "
+                 "with (module softsig_service.experiments.partial_view)", fontsize=11)  # fmt: skip
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
