@@ -206,12 +206,12 @@ def _outline(name: str, axis: int) -> np.ndarray:
     t = np.linspace(0.0, 2.0 * np.pi, 120)
     hx, hy, hz = true.half_extents
     if true.kind == "box":
-        a, b = ((hx, hy) if axis == 2 else (hy, hz))
+        a, b = (hx, hy) if axis == 2 else (hy, hz)
         pts = np.array([[-a, -b], [a, -b], [a, b], [-a, b], [-a, -b]])
     elif true.kind == "cylinder" and axis == 2:
         pts = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy], [-hx, -hy]])
     else:  # an ellipse: the apple from either side, the lying cylinder's round end from the side
-        a, b = ((hx, hy) if axis == 2 else (hy, hz))
+        a, b = (hx, hy) if axis == 2 else (hy, hz)
         pts = np.c_[a * np.cos(t), b * np.sin(t)]
     centre = c[:2] if axis == 2 else c[1:]
     return np.asarray(pts + centre)

@@ -1,6 +1,6 @@
-"""Footprint geometry of objects on the table: the 2D convex hull and the polygon's second moments of area.
+"""Footprint geometry of objects on the table: the 2D convex hull (qhull) and the polygon's second moments of area.
 
-Pure numpy; lengths in [m] in whatever planar frame the caller uses (softsig: the object frame's xy plane).
+Lengths in [m] in whatever planar frame the caller uses (softsig: the object frame's xy plane).
 """
 
 from __future__ import annotations
@@ -14,26 +14,22 @@ FloatArray = NDArray[np.float64]
 
 
 def convex_hull_2d(points: ArrayLike) -> FloatArray:
-    """Convex hull (counter-clockwise, no repeated end point) of 2D points ``(N, 2)`` (monotone chain)."""
+    """Convex hull (counter-clockwise, no repeated end point) of 2D points ``(N, 2)``: qhull's (scipy). Fewer than
+    three distinct points, or collinear ones, have no area: their distinct points (at most the two ends) are
+    returned, as a degenerate hull."""
+    from scipy.spatial import ConvexHull, QhullError
+
     P = np.unique(np.asarray(points, dtype=np.float64), axis=0)
     if len(P) < 3:
         return P
-    pts = sorted(map(tuple, P))
-
-    def cross(o: tuple[float, ...], a: tuple[float, ...], b: tuple[float, ...]) -> float:
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower: list[tuple[float, ...]] = []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0.0:
-            lower.pop()
-        lower.append(p)
-    upper: list[tuple[float, ...]] = []
-    for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0.0:
-            upper.pop()
-        upper.append(p)
-    return np.array(lower[:-1] + upper[:-1])
+    try:
+        hull = ConvexHull(P)
+    except QhullError:  # collinear: the segment's two ends
+        d = P - P[0]
+        axis = d[np.argmax(np.linalg.norm(d, axis=1))]
+        t = d @ axis
+        return P[[int(np.argmin(t)), int(np.argmax(t))]]
+    return np.asarray(P[hull.vertices], dtype=np.float64)  # counter-clockwise for 2-D input
 
 
 def polygon_moments(poly: ArrayLike) -> tuple[float, FloatArray, FloatArray]:

@@ -230,7 +230,9 @@ def test_bad_json_names_the_field(spec: dict, field: str) -> None:
 def test_unknown_kind_lists_the_choices() -> None:
     with pytest.raises(InvalidInput) as info:
         O.object_from_json({"kind": "cone"})
-    assert info.value.choices == sorted(["box", "builtin", "cylinder", "ellipsoid", "mesh", "points", "sphere"])
+    assert info.value.choices == sorted(
+        ["box", "builtin", "cylinder", "ellipsoid", "mesh", "points", "sphere", "stored", "tabletop"]
+    )
 
 
 def test_below_the_table_is_rejected_above_is_allowed() -> None:
