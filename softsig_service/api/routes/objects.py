@@ -9,6 +9,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, File, Form, Path, Response, UploadFile
 from starlette.concurrency import run_in_threadpool
+from starlette.convertors import Convertor, register_url_convertor
 
 from softsig_service import registry as repo
 from softsig_service.api.deps import Ctx
@@ -22,6 +23,22 @@ from softsig_service.objects.schema import FRAME_PATTERN, OBJECT_ID_PATTERN, OBJ
 
 router = APIRouter(prefix="/v1", tags=["objects"])
 ObjectId = Annotated[str, Path(pattern=OBJECT_ID_PATTERN, description="a registered object's id")]
+
+
+class _ObjectIdConvertor(Convertor[str]):
+    """Path segments that can be an object's id (32 hex digits): ``/v1/objects/files`` is then the file route's
+    resource only, and another method on it is 405, not a 422 about an id."""
+
+    regex = OBJECT_ID_PATTERN.strip("^$")
+
+    def convert(self, value: str) -> str:
+        return value
+
+    def to_string(self, value: str) -> str:
+        return value
+
+
+register_url_convertor("object_id", _ObjectIdConvertor())
 
 
 def _links(object_id: str) -> dict[str, str]:
@@ -105,14 +122,14 @@ def list_objects(ctx: Ctx, limit: Limit = DEFAULT_LIMIT, offset: Offset = 0) -> 
     return page_of(rows, total, limit, offset)
 
 
-@router.get("/objects/{object_id}", response_model=ObjectOut, **read_route({404: problem("no such object")}),
+@router.get("/objects/{object_id:object_id}", response_model=ObjectOut, **read_route({404: problem("no such object")}),
             summary="Get a registered object")  # fmt: skip
 def get_object(ctx: Ctx, object_id: ObjectId) -> dict[str, Any]:
     """A registered object with its geometry and what the planner derives from it."""
     return _out(repo.get_object(ctx.registry, object_id))
 
 
-@router.delete("/objects/{object_id}", status_code=204, response_class=Response,
+@router.delete("/objects/{object_id:object_id}", status_code=204, response_class=Response,
                **write_route({404: problem("no such object")}), summary="Delete a registered object")  # fmt: skip
 def delete_object(ctx: Ctx, object_id: ObjectId) -> Response:
     """Remove a registered object; 404 if there is none. Plans stored with it keep their copy of the object."""
