@@ -41,7 +41,7 @@ from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
-from starlette.routing import Match
+from starlette.routing import Match, Route
 from starlette.types import Receive, Scope, Send
 
 from softsig_service.errors import (
@@ -140,7 +140,8 @@ async def _http_handler(request: Request, exc: Exception) -> JSONResponse:
     headers = dict(exc.headers or {})
     if status == 405:
         # the router names only the first route whose path matched; the resource has the methods of all of them
-        allowed = allowed_methods(getattr(request.app.state, "routes", ()), request.scope)
+        own = [r for r in request.app.router.routes if isinstance(r, Route)]  # /openapi.json, /docs, ...
+        allowed = allowed_methods([*getattr(request.app.state, "routes", ()), *own], request.scope)
         headers["Allow"] = ", ".join(allowed)
         extra = {**extra, "choices": allowed}
     body = problem_body(status, slug=slug, detail=detail, instance=request.url.path, **extra)

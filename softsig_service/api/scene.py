@@ -13,33 +13,38 @@ from softsig_service.errors import InvalidInput, NotFound
 from softsig_service.objects import TableObject
 from softsig_service.objects.schema import SceneFields, object_json
 
-StoredLookup = Callable[[str], dict[str, Any]]
-"""A registered object's JSON by its id (raises :class:`NotFound` for an unknown one)."""
+StoredLookup = Callable[[str], tuple[dict[str, Any], float]]
+"""A registered object's JSON and table height [m] by its id (raises :class:`NotFound` for an unknown one)."""
 
 
 def stored_objects(ctx: AppContext) -> StoredLookup:
     """The lookup of the objects registered with the service of ``ctx``."""
     from softsig_service import registry as repo
 
-    return lambda object_id: repo.get_object(ctx.registry, object_id).spec
+    def lookup(object_id: str) -> tuple[dict[str, Any], float]:
+        rec = repo.get_object(ctx.registry, object_id)
+        return rec.spec, rec.table_height
+
+    return lookup
 
 
-def _json(spec: BaseModel, stored: StoredLookup | None, field: str) -> dict[str, Any]:
-    """The object JSON of ``spec``; a stored object's is its registered JSON with the request's pose, mass or
-    friction in place of its own."""
+def _json(spec: BaseModel, stored: StoredLookup | None, field: str) -> tuple[dict[str, Any], float | None]:
+    """The object JSON of ``spec`` and, for a stored object, the table height it was registered on: its registered
+    JSON with the request's pose, mass or friction in place of its own."""
     data = object_json(spec)
     if data.get("kind") != "stored":
-        return data
+        return data, None
     if stored is None:
         raise InvalidInput("registered objects are not taken here", field=f"{field}.kind", value="stored")
     try:
-        registered = dict(stored(data["id"]))
+        found, table_height = stored(data["id"])
     except NotFound:
         raise InvalidInput("no object is registered under this id", field=f"{field}.id", value=data["id"]) from None
+    registered = dict(found)
     for key in ("pose", "mass", "friction"):
         if key in data:
             registered[key] = data[key]
-    return registered
+    return registered, table_height
 
 
 def scene_object(
@@ -47,14 +52,18 @@ def scene_object(
 ) -> TableObject:
     """The object ``spec`` (an :data:`~softsig_service.objects.schema.ObjectSpec`) of a request with ``scene``'s
     ``table`` and ``frames`` (plans, validations): in ``base_link``, on the table; a point cloud becomes its
-    conservative solid, a stored object is found with ``stored``. Raises
+    conservative solid, a stored object is found with ``stored`` (on its registered table unless the request
+    states one). Raises
     :class:`~softsig_service.errors.InvalidInput` naming the field (``field`` its path)."""
     from softsig_service.objects import object_from_json
     from softsig_service.objects.frames import frame_transforms
 
     frames = frame_transforms(scene.model_dump(include={"frames"})["frames"])
-    data = _json(spec, stored, field)
-    return object_from_json(data, table_height=scene.table.height, frames=frames, field=field)
+    data, registered_table = _json(spec, stored, field)
+    table = scene.table.height
+    if registered_table is not None and "table" not in scene.model_fields_set:
+        table = registered_table  # a stored object stands on the table it was registered on, unless told otherwise
+    return object_from_json(data, table_height=table, frames=frames, field=field)
 
 
 def scene_obstacles(

@@ -45,6 +45,8 @@ class HeaderDeadlineProtocol(HttpToolsProtocol):
         self.header_timeout = float(getattr(config, "header_timeout", DEFAULT_HEADER_TIMEOUT))
         self._header_timer: asyncio.TimerHandle | None = None
         self._reading_message = False  # between a request's first byte and its body's end
+        self._completed = 0  # requests read whole on this connection
+        self._answered = 0  # requests answered on it
 
     def _arm(self) -> None:
         self._disarm()
@@ -75,6 +77,8 @@ class HeaderDeadlineProtocol(HttpToolsProtocol):
 
     def on_message_begin(self) -> None:
         self._reading_message = True
+        if self._header_timer is None:  # a pipelined request's headers are due too, from their first byte
+            self._arm()
         super().on_message_begin()
 
     def on_headers_complete(self) -> None:
@@ -83,10 +87,18 @@ class HeaderDeadlineProtocol(HttpToolsProtocol):
 
     def on_message_complete(self) -> None:
         self._reading_message = False
+        self._completed += 1
         super().on_message_complete()
         self._next_headers_due()
 
     def on_response_complete(self) -> None:
+        self._answered += 1
+        if self._completed < self._answered and not self.transport.is_closing():
+            # answered before its body arrived (a 401 or 404 that never read it): the rest of the body is not
+            # waited for, byte by byte, with no deadline; the connection closes after the answer
+            super().on_response_complete()
+            self.transport.close()
+            return
         super().on_response_complete()
         self._next_headers_due()
 

@@ -67,9 +67,13 @@ def _trimesh_load(data: bytes, file_type: str, field: str, filename: str) -> Any
     import trimesh
 
     try:
-        return trimesh.load(io.BytesIO(data), file_type=file_type)
+        loaded = trimesh.load(io.BytesIO(data), file_type=file_type)
     except Exception as exc:  # the readers raise many kinds for malformed files
         raise InvalidInput(f"the {file_type.upper()} file does not parse: {exc}", field=field, value=filename) from None
+    if isinstance(loaded, trimesh.Scene):  # several solids (a CAD export): one mesh of them all
+        meshes = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
+        return trimesh.util.concatenate(meshes) if meshes else trimesh.PointCloud(np.zeros((0, 3)))
+    return loaded
 
 
 def _pcd_points(data: bytes, field: str, filename: str) -> np.ndarray:

@@ -5,11 +5,14 @@
    tilted by more than :data:`MAX_TILT` is refused (the camera's pose in ``frames`` is wrong, or there is no table
    in view), and so is a plane holding fewer than :data:`MIN_TABLE_SHARE` of the points. Its height is the plane's
    mean height over its inliers.
-2. **The objects**: the points more than ``plane_tolerance`` above the plane, clustered by DBSCAN (scikit-learn;
-   points closer than ``cluster_distance`` [m] join a cluster, core points need ``min_samples`` neighbours).
+2. **The objects**: the points more than ``plane_tolerance`` above the plane, clustered by DBSCAN (scikit-learn)
+   over voxels of ``cluster_distance / 2`` weighted by their points (voxels whose centres are closer than
+   ``cluster_distance`` [m] join a cluster; a core voxel's neighbourhood holds :data:`MIN_SAMPLES` points), so that
+   memory stays bounded for a close-up of one large object.
    Clusters of fewer than ``min_points`` points are noise. Clusters are numbered by size, largest first (ties by
    their centroid's x, then y), so a scene gives the same numbers every time.
-3. **Their solids**: each cluster becomes its conservative solid on the table (:mod:`softsig_service.objects.cloud`).
+3. **Their solids**: each cluster becomes its conservative solid on the table (:mod:`softsig_service.objects.cloud`);
+   a flat cluster (thinner than the solid rule admits: a card seen edge-on) is left as noise.
 
 Units: metres, ``base_link`` (z up). The target of a plan is then picked by index or as the cluster whose centroid
 is nearest a given point; the other clusters are its obstacles.
@@ -78,7 +81,6 @@ def segment_tabletop(
     """The table and the objects of the cloud ``points`` ``(N, 3)`` [m] in ``base_link`` (module docstring).
     Raises :class:`InvalidInput` naming ``field`` when no horizontal table plane holds enough of the points, or
     when nothing stands on it."""
-    from sklearn.cluster import DBSCAN
     from sklearn.linear_model import LinearRegression, RANSACRegressor
 
     P = np.asarray(points, dtype=np.float64)
@@ -112,24 +114,38 @@ def segment_tabletop(
     above = P[~inliers]
     if len(above):
         above = above[above[:, 2] > ransac.predict(above[:, :2]) + plane_tolerance]
-    labels = DBSCAN(eps=cluster_distance, min_samples=MIN_SAMPLES).fit_predict(above) if len(above) else np.array([])
+    labels = _voxel_dbscan(above, cluster_distance) if len(above) else np.array([], dtype=np.int64)
     groups = [above[labels == k] for k in np.unique(labels[labels >= 0])]
     groups = [g for g in groups if len(g) >= max(min_points, MIN_POINTS)]
     if not groups:
         raise InvalidInput("nothing stands on the table: no cluster of points above its plane", field=field)
     groups.sort(key=lambda g: (-len(g), float(g[:, 0].mean()), float(g[:, 1].mean())))
-    clusters = [
-        Cluster(
-            index=k,
-            points=g,
-            centroid=g.mean(axis=0),
-            solid=conservative_solid(g, height, filter_outliers=filter_outliers, field=f"{field}.clusters[{k}]"),
-        )
-        for k, g in enumerate(groups)
-    ]
-    noise = int(len(above) - sum(len(g) for g in groups))
+    clusters: list[Cluster] = []
+    for g in groups:
+        try:
+            solid = conservative_solid(g, height, filter_outliers=filter_outliers, field=field)
+        except InvalidInput:  # a flat cluster (a card seen edge-on, a sheet): nothing to grasp or hit, left as noise
+            continue
+        clusters.append(Cluster(index=len(clusters), points=g, centroid=g.mean(axis=0), solid=solid))
+    if not clusters:
+        raise InvalidInput("nothing stands on the table: every cluster above its plane is flat", field=field)
+    noise = int(len(above) - sum(len(c.points) for c in clusters))
     return Segmentation(height=height, normal=normal, tilt=tilt, inliers=int(inliers.sum()), clusters=clusters,
                         noise=noise)  # fmt: skip
+
+
+def _voxel_dbscan(points: FloatArray, eps: float) -> NDArray[np.int64]:
+    """DBSCAN labels of ``points`` (-1: noise), clustered as the centres of the occupied voxels of side ``eps / 2``,
+    each weighted by its point count (scikit-learn's ``sample_weight``: a core voxel holds or neighbours at least
+    :data:`MIN_SAMPLES` points), the labels mapped back to the points. DBSCAN keeps every neighbourhood in memory:
+    over raw points a close-up of one large object would hold billions of pairs; over voxels, a few per voxel."""
+    from sklearn.cluster import DBSCAN
+
+    keys, inverse, counts = np.unique(np.floor(points / (0.5 * eps)).astype(np.int64), axis=0, return_inverse=True,
+                                      return_counts=True)  # fmt: skip
+    centres = (keys + 0.5) * (0.5 * eps)
+    labels = DBSCAN(eps=eps, min_samples=MIN_SAMPLES).fit_predict(centres, sample_weight=counts)
+    return np.asarray(labels[inverse.ravel()], dtype=np.int64)
 
 
 def pick_target(segmentation: Segmentation, *, index: int | None, near: FloatArray | None, field: str) -> int:

@@ -51,9 +51,10 @@ class DepthCamera:
 
     @property
     def matrix(self) -> FloatArray:
-        """The 3x3 intrinsic matrix K (principal point at the image centre)."""
+        """The 3x3 intrinsic matrix K, principal point at the image centre, pixel centres at whole numbers (ROS and
+        OpenCV: cx = (width - 1) / 2)."""
         f = self.focal
-        return np.array([[f, 0.0, 0.5 * self.width], [0.0, f, 0.5 * self.height], [0.0, 0.0, 1.0]])
+        return np.array([[f, 0.0, 0.5 * (self.width - 1)], [0.0, f, 0.5 * (self.height - 1)], [0.0, 0.0, 1.0]])
 
 
 def look_at(eye: Sequence[float], target: Sequence[float]) -> FloatArray:
@@ -64,7 +65,7 @@ def look_at(eye: Sequence[float], target: Sequence[float]) -> FloatArray:
     if np.linalg.norm(z) < 1e-9:
         raise InvalidInput("the camera cannot look at its own position", field="target")
     z /= np.linalg.norm(z)
-    x = np.cross(z, [0.0, 0.0, -1.0])
+    x = np.cross([0.0, 0.0, -1.0], z)  # so that y = z x x points down
     if np.linalg.norm(x) < 1e-9:  # looking straight down or up: image x along world x
         x = np.array([1.0, 0.0, 0.0])
     x /= np.linalg.norm(x)

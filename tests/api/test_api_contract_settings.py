@@ -75,3 +75,10 @@ def test_a_method_a_resource_lacks_is_405_naming_every_method_it_has(
         response = client.request(method, path, headers=AUTH)
     assert_problem(response, 405)
     assert response.headers["allow"] == allowed
+
+
+def test_a_method_the_framework_route_lacks_names_its_methods(tmp_path: Path) -> None:
+    with TestClient(create_app(make_settings(tmp_path))) as client:
+        response = client.post("/openapi.json")
+    assert_problem(response, 405)
+    assert "GET" in response.headers["allow"].split(", ")

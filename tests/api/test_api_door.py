@@ -139,3 +139,22 @@ def test_rejected_uploads_leave_no_folders(api: tuple[TestClient, Path]) -> None
     assert_problem(client.post("/v1/hands", files=upload(files), headers=AUTH), 422, "assets[1]")
     assert not (data / "hands" / "left_behind").exists()
     assert list((data / "hands").iterdir()) == []
+
+
+def test_a_body_the_app_never_reads_is_not_waited_for(server: tuple[int, Path]) -> None:
+    """A request answered before its body is read (a 404 off /v1 needs no key) closes its connection: the rest of
+    the body, trickled a byte at a time, has no deadline to meet otherwise."""
+    port, _ = server
+    head = b"POST /nowhere HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 1000000\r\n\r\n"
+    answer, closed_after = trickle(port, b"x" * 100, interval=0.2, limit=10.0, head=head)
+    assert answer.startswith(b"HTTP/1.1 404 "), answer
+    assert closed_after < 4.0
+
+
+def test_pipelined_headers_have_their_deadline_too(server: tuple[int, Path]) -> None:
+    port, _ = server
+    first = b"GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+    second = b"GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Padding: " + b"a" * 200 + b"\r\n\r\n"
+    answer, closed_after = trickle(port, second[10:], interval=0.1, limit=10.0, head=first + second[:10])
+    assert answer.startswith(b"HTTP/1.1 200 ") and b"408 Request Timeout" in answer, answer
+    assert closed_after < 4.0

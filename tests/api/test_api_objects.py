@@ -79,3 +79,31 @@ def test_refusals_name_the_field_and_store_nothing(api: TestClient) -> None:
     stored = {"kind": "stored", "id": "0" * 32}
     assert assert_problem(api.post("/v1/objects", json={"object": stored}, headers=AUTH), 422)["field"] == "object.kind"
     assert api.get("/v1/objects").json()["total"] == before
+
+
+def test_out_of_range_files_are_422_not_500(api: TestClient) -> None:
+    stl = MESH_MM.export(file_type="stl")
+    in_mm = api.post("/v1/objects/files", files={"file": ("box.stl", stl)}, data={"mass": "0.15"}, headers=AUTH)
+    assert assert_problem(in_mm, 422)["field"] == "file"  # 160 m long without scale 0.001
+    light = api.post("/v1/objects/files", files={"file": ("box.stl", stl)}, data={"mass": "0.00001", "scale": "0.001"},
+                     headers=AUTH)  # fmt: skip
+    assert assert_problem(light, 422)["field"] == "mass"
+    two = trimesh.util.concatenate([trimesh.creation.box(extents=(0.05, 0.05, 0.05)),
+                                    trimesh.creation.box(extents=(0.05, 0.05, 0.05)).apply_translation((0.1, 0, 0))])  # fmt: skip
+    scene = trimesh.Scene([trimesh.creation.box(extents=(0.05, 0.05, 0.05)),
+                           trimesh.creation.box(extents=(0.05, 0.05, 0.05)).apply_translation((0.1, 0, 0))])  # fmt: skip
+    solids = "".join(trimesh.exchange.stl.export_stl_ascii(g) for g in scene.dump())  # two solids in one file
+    r = api.post("/v1/objects/files", files={"file": ("two.stl", solids.encode())}, data={"mass": "0.2"}, headers=AUTH)
+    assert r.status_code == 201, r.text
+    assert abs(r.json()["extent_major"] - 0.15) < 1e-9 and two is not None
+
+
+def test_a_stored_object_stands_on_its_registered_table(api: TestClient) -> None:
+    box = {"kind": "box", "size": [0.16, 0.06, 0.05], "mass": 0.15, "pose": {"x": 0.5, "y": 0.0}}
+    r = api.post("/v1/objects", json={"object": box, "table": {"height": -0.08}}, headers=AUTH)
+    assert r.status_code == 201, r.text
+    plan = _plan(api, {"kind": "stored", "id": r.json()["id"]})
+    on_zero = api.post("/v1/plans", json={"hand": "parallel_gripper", "strategy": "S", "store": False,
+                                          "object": {"kind": "stored", "id": r.json()["id"]},
+                                          "table": {"height": 0.0}}, headers=AUTH).json()  # fmt: skip
+    assert abs(plan["grasp_pose"]["position"]["z"] - on_zero["grasp_pose"]["position"]["z"] + 0.08) < 1e-6

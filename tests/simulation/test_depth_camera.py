@@ -69,3 +69,11 @@ def test_a_rendered_tabletop_is_segmented_picked_and_planned_for_the_true_box(ha
     assert planner.check_wrist_pose(true, plan.grasp_pose) == []  # feasible against the true box and cylinder
     exact = planner.plan(true)
     assert np.linalg.norm(plan.grasp_pose[:3, 3] - exact.grasp_pose[:3, 3]) < 0.01
+
+
+def test_the_optical_frame_looks_at_its_target_with_the_image_down_towards_the_floor() -> None:
+    T = look_at([0.5, -0.45, 0.55], [0.5, 0.0, 0.0])
+    z = np.array([0.0, 0.45, -0.55]) / np.linalg.norm([0.0, 0.45, -0.55])
+    assert np.allclose(T[:3, 2], z) and T[:3, 1] @ [0.0, 0.0, -1.0] > 0.5  # optical y: down in the image
+    assert np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3)) and np.linalg.det(T[:3, :3]) > 0.99
+    assert EXACT.matrix[0, 2] == (EXACT.width - 1) / 2  # pixel centres at whole numbers (ROS, OpenCV)

@@ -8,6 +8,7 @@ import json
 from typing import Annotated, Any
 
 from fastapi import APIRouter, File, Form, Path, Response, UploadFile
+from pydantic import ValidationError
 from starlette.concurrency import run_in_threadpool
 from starlette.convertors import Convertor, register_url_convertor
 
@@ -19,7 +20,16 @@ from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page
 from softsig_service.api.scene import scene_object
 from softsig_service.errors import InvalidInput
 from softsig_service.objects import TableObject
-from softsig_service.objects.schema import FRAME_PATTERN, OBJECT_ID_PATTERN, OBJECT_SPEC, WORLD_FRAME, SceneFields
+from softsig_service.objects.schema import (
+    FRAME_PATTERN,
+    MIN_MASS,
+    OBJECT_ID_PATTERN,
+    OBJECT_SPEC,
+    UNION_TAGS,
+    WORLD_FRAME,
+    SceneFields,
+)
+from softsig_service.validation import invalid_input
 
 router = APIRouter(prefix="/v1", tags=["objects"])
 ObjectId = Annotated[str, Path(pattern=OBJECT_ID_PATTERN, description="a registered object's id")]
@@ -86,7 +96,7 @@ async def create_object_from_file(
     ctx: Ctx,
     response: Response,
     file: Annotated[UploadFile, File(description="STL (binary or ASCII), OBJ or PLY mesh; PCD or PLY cloud")],
-    mass: Annotated[float, Form(gt=0.0, le=1000.0, description="[kg]")],
+    mass: Annotated[float, Form(ge=MIN_MASS, le=1000.0, description="[kg]")],
     name: Annotated[str, Form(max_length=64)] = "",
     scale: Annotated[float, Form(gt=0.0, le=1000.0, description="factor on the file's coordinates (mm: 0.001)")] = 1.0,
     frame_id: Annotated[str, Form(pattern=FRAME_PATTERN, description="a cloud's frame")] = WORLD_FRAME,
@@ -107,7 +117,11 @@ async def create_object_from_file(
     spec = await run_in_threadpool(
         lambda: object_from_file(data, filename, mass=mass, scale=scale, frame_id=frame_id, field="file")
     )
-    model = OBJECT_SPEC.validate_python(spec)  # the file's contents, already checked against the schema's limits
+    try:  # the file's contents against the schema's ranges (coordinates within 10 m: a file in mm needs scale)
+        model = OBJECT_SPEC.validate_python(spec)
+    except ValidationError as exc:
+        problem = invalid_input(exc, "file", UNION_TAGS)
+        raise InvalidInput(f"the file's object is out of range: {problem}", field="file", value=filename) from None
     obj = await run_in_threadpool(scene_object, model, scene, "file")
     source = filename.rsplit(".", 1)[-1].lower()
     return _register(ctx, obj, name or filename.rsplit(".", 1)[0], source, response)
