@@ -128,3 +128,12 @@ def test_a_rendered_depth_image_plans_over_rest(api: TestClient) -> None:
     r = api.post("/v1/plans", json=body, headers=AUTH)
     assert r.status_code == 200 and r.json()["success"], r.text[:400]
     assert abs(r.json()["object"]["pose"]["x"] - 0.5) < 0.005 and abs(r.json()["object"]["pose"]["y"]) < 0.005
+
+
+def test_a_flat_cluster_is_noise_not_a_refusal(api: TestClient) -> None:
+    """A card standing edge-on beside the boxes (1 mm thick: nothing to grasp or hit) does not refuse the scene."""
+    rng = np.random.default_rng(5)
+    card = np.c_[rng.uniform(0.3, 0.4, 3000), np.full(3000, 0.3), rng.uniform(TABLE + 0.01, TABLE + 0.08, 3000)]
+    r = api.post("/v1/segmentations", json={"points": np.vstack([_tabletop(), card]).tolist()}, headers=AUTH)
+    assert r.status_code == 200, r.text
+    assert len(r.json()["clusters"]) == 3 and r.json()["noise"] >= 3000
