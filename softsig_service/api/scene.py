@@ -17,6 +17,14 @@ StoredLookup = Callable[[str], tuple[dict[str, Any], float]]
 """A registered object's JSON and table height [m] by its id (raises :class:`NotFound` for an unknown one)."""
 
 
+def scene_frames(scene: SceneFields) -> dict[str, Any]:
+    """The 4x4 poses in ``base_link`` of the frames ``scene`` gives (:func:`~softsig_service.objects.frames.
+    frame_transforms`)."""
+    from softsig_service.objects.frames import frame_transforms
+
+    return frame_transforms(scene.model_dump(include={"frames"})["frames"])
+
+
 def stored_objects(ctx: AppContext) -> StoredLookup:
     """The lookup of the objects registered with the service of ``ctx``."""
     from softsig_service import registry as repo
@@ -56,9 +64,8 @@ def scene_object(
     states one). Raises
     :class:`~softsig_service.errors.InvalidInput` naming the field (``field`` its path)."""
     from softsig_service.objects import object_from_json
-    from softsig_service.objects.frames import frame_transforms
 
-    frames = frame_transforms(scene.model_dump(include={"frames"})["frames"])
+    frames = scene_frames(scene)
     data, registered_table = _json(spec, stored, field)
     table = scene.table.height
     if registered_table is not None and "table" not in scene.model_fields_set:
@@ -78,12 +85,11 @@ def scene_objects(
 ) -> tuple[TableObject, tuple[TableObject, ...]]:
     """A plan's target and obstacles. A ``tabletop`` target brings the other clusters of its cloud as obstacles
     (first) and its table plane: the request's ``obstacles`` are then placed on that table."""
-    from softsig_service.objects.frames import frame_transforms
     from softsig_service.objects.parse import tabletop_objects
 
     if getattr(spec, "kind", None) != "tabletop":
         return scene_object(spec, scene, stored=stored), scene_obstacles(obstacles, scene, stored)
-    frames = frame_transforms(scene.model_dump(include={"frames"})["frames"])
+    frames = scene_frames(scene)
     target, others, seg = tabletop_objects(object_json(spec), frames)
     on_its_table = scene.model_copy(update={"table": scene.table.model_copy(update={"height": seg.height})})
     return target, (*others, *scene_obstacles(obstacles, on_its_table, stored))

@@ -28,6 +28,17 @@ Frames = Mapping[str, FloatArray]
 """Frame name -> ``T_base_link_frame`` (4x4)."""
 
 
+def unit_quaternion(q: Mapping[str, float], field: str) -> FloatArray:
+    """The quaternion ``q`` (``{"x", "y", "z", "w"}``) as a unit wxyz array, normalised when its norm is within
+    :data:`UNIT_TOLERANCE` of 1; :class:`InvalidInput` naming ``field`` otherwise."""
+    q_wxyz = np.array([q["w"], q["x"], q["y"], q["z"]], dtype=np.float64)
+    norm = float(np.linalg.norm(q_wxyz))
+    if abs(norm - 1.0) > UNIT_TOLERANCE:
+        raise InvalidInput(f"the orientation is not a unit quaternion (norm {norm:.6g})", field=field,
+                           value=[q["x"], q["y"], q["z"], q["w"]])  # fmt: skip
+    return q_wxyz / norm
+
+
 def frame_transforms(frames: Mapping[str, Mapping[str, Any]] | None, field: str = "frames") -> dict[str, FloatArray]:
     """The 4x4 poses in ``base_link`` of ``frames`` (name -> ``{"position", "orientation"}`` JSON). Raises
     :class:`InvalidInput` naming ``frames.<name>.orientation`` for a quaternion that is not (nearly) unit, and
@@ -36,16 +47,9 @@ def frame_transforms(frames: Mapping[str, Mapping[str, Any]] | None, field: str 
     for name, pose in (frames or {}).items():
         if name == WORLD_FRAME:
             raise InvalidInput(f"{WORLD_FRAME} is the world frame: its pose is not given", field=f"{field}.{name}")
-        p, q = pose["position"], pose["orientation"]
-        q_wxyz = np.array([q["w"], q["x"], q["y"], q["z"]], dtype=np.float64)
-        norm = float(np.linalg.norm(q_wxyz))
-        if abs(norm - 1.0) > UNIT_TOLERANCE:
-            raise InvalidInput(
-                f"the orientation is not a unit quaternion (norm {norm:.6g})",
-                field=f"{field}.{name}.orientation",
-                value=[q["x"], q["y"], q["z"], q["w"]],
-            )
-        out[name] = transform_from_quat([p["x"], p["y"], p["z"]], q_wxyz / norm)
+        p = pose["position"]
+        q = unit_quaternion(pose["orientation"], f"{field}.{name}.orientation")
+        out[name] = transform_from_quat([p["x"], p["y"], p["z"]], q)
     return out
 
 

@@ -16,7 +16,7 @@ from softsig_service.geometry.content_cache import ContentCache, content_digest
 from softsig_service.objects.checks import check_mesh, check_number
 from softsig_service.objects.cloud import CloudSolid, conservative_solid
 from softsig_service.objects.constructors import box, cylinder, ellipsoid, mesh, sphere
-from softsig_service.objects.frames import Frames, to_world
+from softsig_service.objects.frames import Frames, to_world, unit_quaternion
 from softsig_service.objects.schema import OBJECT_SPEC, UNION_TAGS
 from softsig_service.objects.segmentation import Segmentation
 from softsig_service.objects.shape import (
@@ -144,28 +144,35 @@ _TABLETOPS: ContentCache[Segmentation] = ContentCache(size=8)
 """Segmentations by the digest of their points (in ``base_link``) and parameters."""
 
 
+def segmentation_of(points: np.ndarray, params: Any, field: str) -> Segmentation:
+    """The segmentation of ``points`` [m, base_link] with the ``plane_tolerance``, ``cluster_distance``,
+    ``min_points`` and ``filter_outliers`` of ``params`` (a tabletop spec or a segmentation request), cached by
+    content and parameters."""
+    from softsig_service.objects.segmentation import segment_tabletop
+
+    key = (params.plane_tolerance, params.cluster_distance, params.min_points, params.filter_outliers)
+
+    def build() -> Segmentation:
+        return segment_tabletop(points, plane_tolerance=key[0], cluster_distance=key[1], min_points=key[2],
+                                filter_outliers=key[3], field=field)  # fmt: skip
+
+    return _TABLETOPS.get(content_digest(points, np.array(key, dtype=np.float64)), build)
+
+
 def tabletop_objects(
     spec: Mapping[str, Any], frames: Frames | None = None, field: str = "object"
 ) -> tuple[TableObject, list[TableObject], Segmentation]:
     """A ``tabletop`` spec's target (the cluster it picks, with its ``mass``, ``friction`` and ``name``), the other
     clusters as obstacles (mass and friction of the target), and the segmentation
     (:mod:`softsig_service.objects.segmentation`); every object rests on the table plane found."""
-    from softsig_service.objects.segmentation import pick_target, segment_tabletop
+    from softsig_service.objects.segmentation import pick_target
 
     try:
         model = OBJECT_SPEC.validate_python(dict(spec))
     except ValidationError as exc:
         raise invalid_input(exc, field, UNION_TAGS) from None
     points = to_world(np.asarray(model.points, dtype=np.float64), model.frame_id, frames, f"{field}.frame_id")
-    params = (model.plane_tolerance, model.cluster_distance, model.min_points, model.filter_outliers)
-
-    def build() -> Segmentation:
-        return segment_tabletop(
-            points, plane_tolerance=params[0], cluster_distance=params[1], min_points=params[2],
-            filter_outliers=params[3], field=f"{field}.points",
-        )  # fmt: skip
-
-    seg = _TABLETOPS.get(content_digest(points, np.array(params, dtype=np.float64)), build)
+    seg = segmentation_of(points, model, f"{field}.points")
     near = None if model.pick.near is None else np.array([model.pick.near.x, model.pick.near.y, model.pick.near.z])
     target = pick_target(seg, index=model.pick.index, near=near, field=f"{field}.pick")
     names = [(model.name or "target") if c.index == target else f"cluster_{c.index}" for c in seg.clusters]
@@ -192,14 +199,9 @@ def _turned(model: Any, table_height: float, field: str) -> TableObject:
     pose = model.pose
     if pose.yaw != 0.0:
         raise InvalidInput("give yaw or orientation, not both", field=f"{field}.pose.yaw", value=pose.yaw)
-    q = pose.orientation
-    norm = float(np.linalg.norm([q.w, q.x, q.y, q.z]))
-    if abs(norm - 1.0) > 1e-3:
-        raise InvalidInput(f"the orientation is not a unit quaternion (norm {norm:.6g})",
-                           field=f"{field}.pose.orientation", value=[q.x, q.y, q.z, q.w])  # fmt: skip
     from softsig_service.geometry.quaternions import quat_to_matrix
 
-    R = quat_to_matrix(np.array([q.w, q.x, q.y, q.z]) / norm)
+    R = quat_to_matrix(unit_quaternion(pose.orientation.model_dump(), f"{field}.pose.orientation"))
     kind = model.kind
     if kind == "box":
         shape = trimesh.creation.box(extents=model.size)

@@ -85,17 +85,19 @@ class Planner:
         self._hands: weakref.WeakKeyDictionary[HandPlanningModel, HandGeometry] = weakref.WeakKeyDictionary()
         self._hands_lock = threading.Lock()
 
-    def _world(self, model: HandPlanningModel, table_height: float) -> CollisionWorld:
-        """This thread's collision world for the hand ``model`` over a table at ``table_height`` [m].
+    def _world(self, model: HandPlanningModel, table_height: float, purpose: str = "worlds") -> CollisionWorld:
+        """This thread's collision world for the hand ``model`` over a table at ``table_height`` [m]; ``purpose``
+        keeps apart worlds that hold other objects (``"obstacle_worlds"``: one obstacle at a time).
 
         Keyed by the model itself (weakly: a model the planning-model cache has let go takes its worlds with it),
         so a replaced hand's new model never meets its old geometry; at most ``WORLDS_PER_MODEL`` table heights
         per model and thread (least recently used first out)."""
         worlds: weakref.WeakKeyDictionary[HandPlanningModel, dict[float, CollisionWorld]] | None = getattr(
-            self._local, "worlds", None
+            self._local, purpose, None
         )
         if worlds is None:
-            worlds = self._local.worlds = weakref.WeakKeyDictionary()
+            worlds = weakref.WeakKeyDictionary()
+            setattr(self._local, purpose, worlds)
         by_height = worlds.get(model)
         if by_height is None:
             by_height = worlds[model] = {}
@@ -106,23 +108,6 @@ class Planner:
             while len(by_height) >= WORLDS_PER_MODEL:
                 del by_height[next(iter(by_height))]
         by_height[key] = world  # re-inserted: the dict's order is the order of use
-        return world
-
-    def _obstacle_world(self, model: HandPlanningModel, table_height: float) -> CollisionWorld:
-        """This thread's world for checking the hand ``model`` and the arm against obstacles over a table at
-        ``table_height`` [m] (one obstacle at a time as its object; the world keeps the shapes it has built)."""
-        worlds: weakref.WeakKeyDictionary[HandPlanningModel, dict[float, CollisionWorld]] | None = getattr(
-            self._local, "obstacle_worlds", None
-        )
-        if worlds is None:
-            worlds = self._local.obstacle_worlds = weakref.WeakKeyDictionary()
-        by_height = worlds.setdefault(model, {})
-        key = round(table_height, 6)
-        world = by_height.get(key)
-        if world is None:
-            world = by_height[key] = CollisionWorld(self.ur5, model.shapes, table_height=table_height)
-            while len(by_height) > WORLDS_PER_MODEL:
-                del by_height[next(iter(by_height))]
         return world
 
     def _hand(self, model: HandPlanningModel) -> HandGeometry:
@@ -257,7 +242,7 @@ class Planner:
         """Every arm link and hand shape against each obstacle, along the whole approach and at the grasp, with
         the plan's margin [m]: the hand may touch its target, never an obstacle."""
         model = planning_model(req.hand, req.cs_method, self.settings, req.cs_criterion, req.hand_revision)
-        world = self._obstacle_world(model, req.obj.table_height)
+        world = self._world(model, req.obj.table_height, "obstacle_worlds")
         Q = np.array(path)
         for i, obstacle in enumerate(req.obstacles):
             world.set_object_unchecked(obstacle.primitive(), obstacle.primitive_pose)

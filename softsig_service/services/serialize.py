@@ -41,6 +41,12 @@ FRAME_KEYS = frozenset({"x", "y", "z"})
 """In a frame (a dict that also holds ``origin``), the keys of its unit axes."""
 
 
+def vector_json(v: Any) -> dict[str, float]:
+    """A 3-D vector (any sequence of three numbers) as ``{"x", "y", "z"}``, the REST API's form of a vector."""
+    x, y, z = (float(c) for c in v)
+    return {"x": x, "y": y, "z": z}
+
+
 def vectors_as_objects(value: Any) -> Any:
     """``value`` (plain JSON) with every 3-D vector under :data:`VECTOR_KEYS` (and every row of a list under
     :data:`VECTOR_ROW_KEYS`, and the axes of a frame, :data:`FRAME_KEYS` beside an ``origin``) written as

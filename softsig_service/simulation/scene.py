@@ -133,34 +133,23 @@ def _hand_spec(hand_ref: str, settings: Settings) -> tuple[mujoco.MjSpec, HandMo
     return captured[0], hand
 
 
-def _add_object(spec: mujoco.MjSpec, obj: TableObject) -> None:
-    prim = obj.primitive()
-    body = spec.worldbody.add_body(name=OBJECT_BODY)
-    body.add_freejoint(name="object_free")
-    geom = body.add_geom(name="object_geom")
-    set_object_shape(spec, geom, prim, "object_mesh")
+def _add_free_body(spec: mujoco.MjSpec, name: str, obj: TableObject, rgba: list[float], at_pose: bool) -> None:
+    """``obj`` as the free body ``name`` (joint ``name_free``, geom ``name_geom``): environment contacts, its mass
+    and friction; at its pose in the model when ``at_pose`` (an obstacle), else placed by ``make_data``."""
+    body = spec.worldbody.add_body(name=name)
+    if at_pose:
+        T = obj.primitive_pose
+        body.pos = T[:3, 3].tolist()
+        body.quat = matrix_to_quat(T[:3, :3]).tolist()
+    body.add_freejoint(name=f"{name}_free")
+    geom = body.add_geom(name=f"{name}_geom")
+    set_object_shape(spec, geom, obj.primitive(), f"{name}_mesh")
     geom.mass = obj.mass
     geom.friction = [obj.friction, OBJECT_TORSIONAL_FRICTION, OBJECT_ROLLING_FRICTION]
     geom.condim = 4
     geom.contype = ENV_BIT
     geom.conaffinity = ENV_BIT | ARM_BIT
-    geom.rgba = [0.85, 0.35, 0.2, 1.0]
-
-
-def _add_obstacle(spec: mujoco.MjSpec, k: int, obstacle: TableObject) -> None:
-    """Obstacle ``k``: a free body at its pose (the model's initial pose), colliding as the object does."""
-    T = obstacle.primitive_pose
-    body = spec.worldbody.add_body(name=f"{OBSTACLE_BODY}{k}", pos=T[:3, 3].tolist(),
-                                   quat=matrix_to_quat(T[:3, :3]).tolist())  # fmt: skip
-    body.add_freejoint(name=f"{OBSTACLE_BODY}{k}_free")
-    geom = body.add_geom(name=f"{OBSTACLE_BODY}{k}_geom")
-    set_object_shape(spec, geom, obstacle.primitive(), f"{OBSTACLE_BODY}{k}_mesh")
-    geom.mass = obstacle.mass
-    geom.friction = [obstacle.friction, OBJECT_TORSIONAL_FRICTION, OBJECT_ROLLING_FRICTION]
-    geom.condim = 4
-    geom.contype = ENV_BIT
-    geom.conaffinity = ENV_BIT | ARM_BIT
-    geom.rgba = [0.35, 0.45, 0.7, 1.0]
+    geom.rgba = rgba
 
 
 def _compose(hand_ref: str, obj: TableObject, settings: Settings, obstacles: Sequence[TableObject] = ()) -> Scene:
@@ -196,9 +185,9 @@ def _compose(hand_ref: str, obj: TableObject, settings: Settings, obstacles: Seq
     cam.pos = [0.85, -0.42, 0.36]
     cam.mode = mujoco.mjtCamLight.mjCAMLIGHT_TARGETBODY
     cam.targetbody = OBJECT_BODY
-    _add_object(spec, obj)
-    for k, obstacle in enumerate(obstacles):
-        _add_obstacle(spec, k, obstacle)
+    _add_free_body(spec, OBJECT_BODY, obj, [0.85, 0.35, 0.2, 1.0], at_pose=False)
+    for k, obstacle in enumerate(obstacles):  # colliding as the object does, at their poses
+        _add_free_body(spec, f"{OBSTACLE_BODY}{k}", obstacle, [0.35, 0.45, 0.7, 1.0], at_pose=True)
     try:
         model = spec.compile()
     except ValueError as exc:

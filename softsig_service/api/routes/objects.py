@@ -29,6 +29,7 @@ from softsig_service.objects.schema import (
     WORLD_FRAME,
     SceneFields,
 )
+from softsig_service.services.serialize import vector_json
 from softsig_service.validation import invalid_input
 
 router = APIRouter(prefix="/v1", tags=["objects"])
@@ -55,18 +56,13 @@ def _links(object_id: str) -> dict[str, str]:
     return {"self": f"/v1/objects/{object_id}"}
 
 
-def _vector(v: Any) -> dict[str, float]:
-    x, y, z = (float(c) for c in v)
-    return {"x": x, "y": y, "z": z}
-
-
 def _out(rec: repo.ObjectRecord) -> dict[str, Any]:
     from softsig_service.objects import object_from_json
 
     obj = object_from_json(rec.spec, table_height=rec.table_height)
     return {
         "id": rec.id, "name": rec.name, "source": rec.source, "object": rec.spec, "table_height": rec.table_height,
-        "o1": _vector(obj.o1), "o2": _vector(obj.o2), "extent_major": obj.extent_major,
+        "o1": vector_json(obj.o1), "o2": vector_json(obj.o2), "extent_major": obj.extent_major,
         "extent_minor": obj.extent_minor, "height": obj.height, "created_at": rec.created_at, "links": _links(rec.id),
     }  # fmt: skip
 

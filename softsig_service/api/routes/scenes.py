@@ -11,35 +11,30 @@ from starlette.concurrency import run_in_threadpool
 
 from softsig_service.api.deps import Ctx
 from softsig_service.api.routes.common import write_route
+from softsig_service.api.scene import scene_frames
 from softsig_service.api.scene_schemas import SegmentationIn, SegmentationOut
+from softsig_service.services.serialize import vector_json
 
 router = APIRouter(prefix="/v1", tags=["plans"])
 
 
-def _vector(v: Any) -> dict[str, float]:
-    x, y, z = (float(c) for c in v)
-    return {"x": x, "y": y, "z": z}
-
-
 def _segment(body: SegmentationIn) -> dict[str, Any]:
-    from softsig_service.objects.frames import frame_transforms, to_world
-    from softsig_service.objects.parse import solid_object
-    from softsig_service.objects.segmentation import segment_tabletop
+    from softsig_service.objects.frames import to_world
+    from softsig_service.objects.parse import segmentation_of, solid_object
 
-    frames = frame_transforms(body.model_dump(include={"frames"})["frames"])
+    frames = scene_frames(body)
     points = to_world(np.asarray(body.points, dtype=np.float64), body.frame_id, frames, "frame_id")
-    seg = segment_tabletop(points, plane_tolerance=body.plane_tolerance, cluster_distance=body.cluster_distance,
-                           min_points=body.min_points, filter_outliers=body.filter_outliers)  # fmt: skip
+    seg = segmentation_of(points, body, "points")
     clusters = []
     for c in seg.clusters:
         obj = solid_object(c.solid, seg.height, 1.0, 1.0, f"cluster_{c.index}")
         clusters.append({
-            "index": c.index, "points": len(c.points), "centroid": _vector(c.centroid), "o1": _vector(obj.o1),
-            "o2": _vector(obj.o2), "extent_major": obj.extent_major, "extent_minor": obj.extent_minor,
+            "index": c.index, "points": len(c.points), "centroid": vector_json(c.centroid), "o1": vector_json(obj.o1),
+            "o2": vector_json(obj.o2), "extent_major": obj.extent_major, "extent_minor": obj.extent_minor,
             "height": obj.height,
             "solid": {"vertices": c.solid.vertices.tolist(), "faces": c.solid.faces.tolist(), "volume": c.solid.volume},
         })  # fmt: skip
-    table = {"height": seg.height, "normal": _vector(seg.normal), "tilt": seg.tilt, "inliers": seg.inliers}
+    table = {"height": seg.height, "normal": vector_json(seg.normal), "tilt": seg.tilt, "inliers": seg.inliers}
     return {"table": table, "clusters": clusters, "noise": seg.noise}
 
 
