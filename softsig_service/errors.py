@@ -121,5 +121,9 @@ class ServiceBusy(SoftsigError):
     """The service cannot take the work now (job queue full, worker pool restarting); retry later."""
 
 
+class UnsupportedMediaType(SoftsigError):
+    """A request body in a media type the route does not take (``field`` is ``Content-Type``)."""
+
+
 class NotAvailable(SoftsigError):
     """The service does not offer this kind of work (a job kind not configured in this deployment)."""

@@ -23,16 +23,18 @@ from contextlib import asynccontextmanager
 from typing import Any
 
 from fastapi import FastAPI
+from pydantic import BaseModel
 from starlette.concurrency import run_in_threadpool
 
 from softsig_service import __version__
 from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
-from softsig_service.api.contract import apply_settings
+from softsig_service.api.contract import add_body_models, apply_settings
 from softsig_service.api.docs_page import install_docs
 from softsig_service.api.guard import AuthGateMiddleware
 from softsig_service.api.idempotency import IdempotencyMiddleware
 from softsig_service.api.logging import RequestContextMiddleware
+from softsig_service.api.object_schemas import ObjectIn
 from softsig_service.api.problems import BodyLimitMiddleware, install_problem_handlers
 from softsig_service.config import Settings
 from softsig_service.registry.db import Registry
@@ -45,8 +47,10 @@ from softsig_service.services.retention import purge_old, retention_loop
 
 log = logging.getLogger("softsig.api")
 
-UPLOAD_PATHS: tuple[str, ...] = (r"/v1/hands", r"/v1/hands/archive", r"/v1/hands/[^/]+", r"/v1/objects/files")
-"""Paths whose bodies are multipart uploads of hands and object files (limit ``max_upload_bytes``)."""
+UPLOAD_PATHS: tuple[str, ...] = (r"/v1/hands", r"/v1/hands/archive", r"/v1/hands/[^/]+", r"/v1/objects")
+"""Paths that take multipart uploads of hands and object files (a multipart body to one: ``max_upload_bytes``)."""
+SELF_READ_BODIES: tuple[type[BaseModel], ...] = (ObjectIn,)
+"""The JSON bodies of routes that read their body themselves (:func:`~softsig_service.api.contract.add_body_models`)."""
 MARKERS_PATH = r"/v1/hands/[^/]+/signatures/markers"
 """The marker upload (limit ``max_markers_bytes``)."""
 
@@ -184,7 +188,7 @@ def _document_settings(app: FastAPI, settings: Settings) -> None:
 
     def openapi() -> dict[str, Any]:
         if app.openapi_schema is None:
-            app.openapi_schema = apply_settings(build(), settings)
+            app.openapi_schema = apply_settings(add_body_models(build(), SELF_READ_BODIES), settings)
         return app.openapi_schema
 
     app.openapi = openapi  # type: ignore[method-assign]

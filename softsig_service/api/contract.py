@@ -11,11 +11,16 @@ checker) generated from ``/openapi.json`` is told what the service does:
   refused).
 
 ``openapi/openapi.json`` is the document of the default settings.
+
+A route that reads its body itself (``POST /v1/objects`` takes JSON or a multipart file) names its JSON body's
+schema by reference; :func:`add_body_models` puts those models into the document's components.
 """
 
 from __future__ import annotations
 
 from typing import Any
+
+from pydantic import BaseModel
 
 from softsig_service.api.deps import IF_MATCH_REQUIRED_DESCRIPTION
 from softsig_service.config import Settings
@@ -41,6 +46,18 @@ def apply_settings(document: dict[str, Any], settings: Settings) -> dict[str, An
     _cap(schemas, "ValidationIn", "trials", settings.max_job_trials)
     # below one trial per cell no experiment fits: the maximum then says so (0, under the minimum of 1)
     _cap(schemas, "ExperimentIn", "trials", settings.max_job_trials // TABLE1_CELLS)
+    return document
+
+
+def add_body_models(document: dict[str, Any], models: tuple[type[BaseModel], ...]) -> dict[str, Any]:
+    """``document`` (changed in place and returned) with the JSON schemas of ``models`` and the models they use in
+    ``components.schemas`` (a schema FastAPI already wrote for another route is kept: it is the same model)."""
+    schemas = document.setdefault("components", {}).setdefault("schemas", {})
+    for model in models:
+        schema = model.model_json_schema(ref_template="#/components/schemas/{model}")
+        for name, sub in schema.pop("$defs", {}).items():
+            schemas.setdefault(name, sub)
+        schemas.setdefault(model.__name__, schema)
     return document
 
 

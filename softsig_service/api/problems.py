@@ -20,6 +20,7 @@ Conflict                              409     conflict
 PreconditionFailed (If-Match)         412     precondition-failed
 request body over the limit           413     content-too-large
 ModelTooLarge                         413     model-too-large
+UnsupportedMediaType                  415     unsupported-media-type
 request validation (pydantic)         422     validation-error
 InvalidInput, InvalidManifest, ...    422     <error name in kebab case>
 PreconditionRequired                  428     precondition-required
@@ -218,10 +219,10 @@ class BodyLimitMiddleware(HttpMiddleware):
     """Pure ASGI middleware: 413 problem when a request body exceeds its limit.
 
     The limit is the one of the first of ``route_limits`` (regular expression, bytes) whose pattern matches the
-    path, else ``max_upload_bytes`` for paths matching one of ``upload_paths`` (regular expressions; the
-    multipart routes) and ``max_body_bytes`` for every other path. A ``Content-Length`` over the limit is refused
-    before any byte is read; a body streamed without (or beyond) its ``Content-Length`` is counted as it arrives
-    and refused as soon as it passes the limit.
+    path, else ``max_upload_bytes`` for a ``multipart/form-data`` body to a path matching one of ``upload_paths``
+    (regular expressions; the routes that take uploads) and ``max_body_bytes`` for every other body. A
+    ``Content-Length`` over the limit is refused before any byte is read; a body streamed without (or beyond)
+    its ``Content-Length`` is counted as it arrives and refused as soon as it passes the limit.
     """
 
     def __init__(
@@ -239,17 +240,20 @@ class BodyLimitMiddleware(HttpMiddleware):
         self.upload_paths = upload_paths
         self.route_limits = route_limits
 
-    def limit(self, path: str) -> int:
-        """The body limit of ``path``: its own (``route_limits``), the upload limit or the general one."""
+    def limit(self, path: str, multipart: bool = True) -> int:
+        """The body limit of ``path``: its own (``route_limits``), the upload limit (a ``multipart`` body) or the
+        general one."""
         for pattern, limit in self.route_limits:
             if re.fullmatch(pattern, path):
                 return limit
-        return self.max_upload if _limit_for(path, self.upload_paths) else self.max_body
+        return self.max_upload if multipart and _limit_for(path, self.upload_paths) else self.max_body
 
     async def handle(self, scope: Scope, receive: Receive, send: Send, path: str) -> None:
-        limit = self.limit(path)
+        headers = scope.get("headers", ())
+        media = next((v for k, v in headers if k == b"content-type"), b"").split(b";", 1)[0].strip().lower()
+        limit = self.limit(path, multipart=media == b"multipart/form-data")
         declared: int | None = None
-        for key, value in scope.get("headers", ()):
+        for key, value in headers:
             if key == b"content-length":
                 try:
                     declared = int(value)

@@ -242,8 +242,17 @@ def table1(
             help="comma-separated strategies: S,C (default), or with R (builds the capture models first)",
         ),
     ] = ("S,C"),
+    objects: Annotated[
+        str,
+        typer.Option(
+            "--objects",
+            help="comma-separated built-in objects: box,apple,cylinder (default, the paper's), or the household "
+            "meshes mug, banana, power_drill, mustard_bottle",
+        ),
+    ] = "box,apple,cylinder",
 ) -> None:
-    """Run the paper's Table I in simulation: 3 uncertainty levels x box, apple, cylinder x S, C."""
+    """Run the paper's Table I in simulation: 3 uncertainty levels x box, apple, cylinder x S, C (or the grid over
+    other built-in objects)."""
     with _errors():
         from softsig_service.experiments.campaign import read_records, run_campaign
         from softsig_service.experiments.campaign_spec import BACKENDS, TABLE1_CONDITIONS, CampaignSpec
@@ -266,6 +275,7 @@ def table1(
             seed=seed,
             conditions=chosen,
             strategies=tuple(s.strip() for s in strategies.split(",") if s.strip()),
+            objects=tuple(o.strip() for o in objects.split(",") if o.strip()),
             cs_method=cs_method,
             criterion=criterion,
             placement=placement,

@@ -50,18 +50,19 @@ def text_table(rows: Sequence[Mapping[str, Any]], columns: Sequence[tuple[str, s
 
 
 def parse_object(spec: str, x: float, y: float, yaw: float, *, mass: float | None = None, scale: float = 1.0) -> Any:
-    """``box|apple|cylinder``, a path to an object JSON, or a mesh or cloud file (``.stl``, ``.obj``, ``.ply``,
+    """A built-in object's name (``box|apple|cylinder``, or a shipped household mesh: ``mug|banana|power_drill|
+    mustard_bottle``), a path to an object JSON, or a mesh or cloud file (``.stl``, ``.obj``, ``.ply``,
     ``.pcd``; :mod:`softsig_service.objects.files`; ``mass`` [kg] required, ``scale`` on its coordinates). A
     primitive or mesh is placed at (x, y, yaw) on the table; a cloud's points are taken in ``base_link`` as they
     are."""
-    from softsig_service.objects import BUILTIN_NAMES, builtin_object, object_from_json
+    from softsig_service.objects import OBJECT_NAMES, builtin_object, object_from_json
     from softsig_service.objects.files import SUFFIXES, object_from_file
 
-    if spec in BUILTIN_NAMES:
+    if spec in OBJECT_NAMES:
         return builtin_object(spec, x=x, y=y, yaw=yaw)
     path = Path(spec)
     if path.suffix.lower() not in (".json", *SUFFIXES) or not path.is_file():
-        choices = [*BUILTIN_NAMES, "PATH.json", *(f"PATH{s}" for s in SUFFIXES)]
+        choices = [*OBJECT_NAMES, "PATH.json", *(f"PATH{s}" for s in SUFFIXES)]
         raise InvalidInput("object must be a built-in name, an object JSON or a mesh or cloud file", field="object",
                            value=spec, choices=choices)  # fmt: skip
     if path.suffix.lower() == ".json":
@@ -98,7 +99,12 @@ StrategyOption = Annotated[
 HandOption = Annotated[str, typer.Option("--hand", help="built-in name or path to hand.toml")]
 HandArgument = Annotated[str, typer.Argument(help="built-in name or path to hand.toml")]
 ObjectOption = Annotated[
-    str, typer.Option("--object", help="box | apple | cylinder | PATH.json | PATH.stl|.obj|.ply|.pcd (with --mass)")
+    str,
+    typer.Option(
+        "--object",
+        help="box | apple | cylinder | mug | banana | power_drill | mustard_bottle | PATH.json | "
+        "PATH.stl|.obj|.ply|.pcd (with --mass)",
+    ),
 ]
 CaptureOption = Annotated[
     Path | None,

@@ -87,7 +87,7 @@ def signature_closure(
 def signature_stiffness(
     hand: HandArgument,
     obj: Annotated[
-        str, typer.Option("--object", help="box | apple | cylinder | sphere:R (radius [m]) | PATH.json")
+        str, typer.Option("--object", help="a built-in name (box, apple, mug, ...) | sphere:R (radius [m]) | PATH.json")
     ] = "apple",
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
     plot: Annotated[Path | None, typer.Option("--plot", help="PNG of break forces and the stiffness ellipsoid")] = None,
@@ -132,11 +132,12 @@ def signature_stiffness(
 
 
 def _stiffness_object(spec: str) -> Any:
-    """``box|apple|cylinder``, ``sphere:R`` (radius [m]) or a JSON file: the object held in the hand."""
+    """A built-in object's name (Table I's or a household mesh), ``sphere:R`` (radius [m]) or a JSON file: the
+    object held in the hand."""
     from softsig_service.errors import InvalidInput
-    from softsig_service.objects import BUILTIN_NAMES, builtin_object, sphere
+    from softsig_service.objects import OBJECT_NAMES, builtin_object, sphere
 
-    if spec in BUILTIN_NAMES:
+    if spec in OBJECT_NAMES:
         return builtin_object(spec)
     if spec.startswith("sphere:"):
         try:

@@ -106,7 +106,8 @@ _SHARED_WITH_TRIALS = ("hand", "x", "y", "yaw", "cs_method", "criterion", "place
 
 @dataclass(frozen=True)
 class CampaignSpec:
-    """A campaign grid. ``objects`` are built-in names (docs/design.md §7) placed at ``(x, y, yaw)`` [m, m, rad].
+    """A campaign grid. ``objects`` are built-in names (docs/design.md §7, or the household meshes) placed at
+    ``(x, y, yaw)`` [m, m, rad].
 
     ``cs_method`` ("ellipsoid" | "pca" | "mesh"), ``criterion`` (the ellipsoid CS's "absolute" | "relative") and
     ``placement`` ("open_centre" | "grasp_centre" | "previous") are passed to every plan (see :class:`PlanRequest`)."""
@@ -125,7 +126,7 @@ class CampaignSpec:
     placement: str = "open_centre"
 
     def __post_init__(self) -> None:
-        from softsig_service.objects import BUILTIN_NAMES
+        from softsig_service.objects import OBJECT_NAMES
         from softsig_service.planning.hand_model import PLACEMENTS
         from softsig_service.planning.strategies import STRATEGIES
         from softsig_service.signatures.closure_types import CRITERIA, METHODS
@@ -147,8 +148,8 @@ class CampaignSpec:
                     "a condition is (sigma_r >= 0 [rad], sigma_t >= 0 [m])", field=f"conditions[{k}]", value=cond
                 )
         for name in self.objects:
-            if name not in BUILTIN_NAMES:
-                raise InvalidInput("unknown object", field="objects", value=name, choices=BUILTIN_NAMES)
+            if name not in OBJECT_NAMES:
+                raise InvalidInput("unknown object", field="objects", value=name, choices=OBJECT_NAMES)
         for s in self.strategies:
             if s not in STRATEGIES:
                 raise InvalidInput("unknown strategy", field="strategies", value=s, choices=STRATEGIES)

@@ -31,10 +31,22 @@ MAX_FACES = 200_000
 
 
 def object_from_file(
-    data: bytes, filename: str, *, mass: float, scale: float = 1.0, frame_id: str = WORLD_FRAME, field: str = "file"
+    data: bytes,
+    filename: str,
+    *,
+    mass: float,
+    scale: float = 1.0,
+    frame_id: str = WORLD_FRAME,
+    kind: str | None = None,
+    field: str = "file",
 ) -> dict[str, Any]:
     """The object JSON of the file ``filename`` (its suffix chooses the reader) whose bytes are ``data``: a ``mesh``
-    (vertices [m] times ``scale``, faces) or a ``points`` cloud in ``frame_id``; ``mass`` [kg]."""
+    (vertices [m] times ``scale``, faces) or a ``points`` cloud in ``frame_id``; ``mass`` [kg]. ``kind``
+    (``"mesh"`` or ``"points"``) says which the file must give: ``"points"`` takes a mesh's vertices as a cloud,
+    ``"mesh"`` refuses a file without triangles; by default a file with triangles is a mesh."""
+    if kind not in (None, "mesh", "points"):
+        raise InvalidInput("an object file is read as a mesh or as points", field="kind", value=kind,
+                           choices=("mesh", "points"))  # fmt: skip
     suffix = PurePath(filename).suffix.lower()
     if suffix not in SUFFIXES:
         raise InvalidInput("unknown object file type", field=field, value=filename, choices=SUFFIXES)
@@ -48,12 +60,15 @@ def object_from_file(
     else:
         geometry = _trimesh_load(data, suffix[1:], field, filename)
         faces = getattr(geometry, "faces", None)
-        if faces is not None and len(faces) > 0:
+        has_faces = faces is not None and len(faces) > 0
+        if has_faces and kind != "points":
             return _mesh_json(np.asarray(geometry.vertices) * scale, np.asarray(faces), mass, name, field)
         points = np.asarray(getattr(geometry, "vertices", np.zeros((0, 3))), dtype=np.float64)
-        if suffix != ".ply":
+        if not has_faces and suffix != ".ply":
             raise InvalidInput(f"the file holds no triangles (or is no {suffix[1:].upper()} file)", field=field,
                                value=filename)  # fmt: skip
+    if kind == "mesh":
+        raise InvalidInput("the file holds no triangles: a cloud (kind points)", field=field, value=filename)
     points = points[np.all(np.isfinite(points), axis=1)] * scale
     if not MIN_POINTS <= len(points) <= MAX_POINTS:
         raise InvalidInput(

@@ -20,9 +20,10 @@ from softsig_service.objects.frames import Frames, to_world, unit_quaternion
 from softsig_service.objects.schema import OBJECT_SPEC, UNION_TAGS
 from softsig_service.objects.segmentation import Segmentation
 from softsig_service.objects.shape import (
-    BUILTIN_NAMES,
     DEFAULT_X,
     DEFAULT_Y,
+    HOUSEHOLD_NAMES,
+    OBJECT_NAMES,
     TableObject,
 )
 from softsig_service.validation import invalid_input
@@ -47,10 +48,11 @@ def builtin_object(
 ) -> TableObject:
     """One of the built-in objects of docs/design.md §7 at a table pose: ``"box"`` (0.16 x 0.06 x 0.05 m, 0.15 kg),
     ``"apple"`` (ellipsoid radii 0.040, 0.040, 0.036 m, 0.18 kg) or ``"cylinder"`` (radius 0.03 m, length
-    0.16 m, lying, 0.20 kg). Raises :class:`InvalidInput` listing the choices for another name."""
-    if name not in _BUILTINS:
-        raise InvalidInput(f"unknown built-in object {name!r}", field="object.name", value=name, choices=BUILTIN_NAMES)
-    spec = dict(_BUILTINS[name], name=name, pose={"x": x, "y": y, "yaw": yaw})
+    0.16 m, lying, 0.20 kg), or a shipped household mesh (:data:`HOUSEHOLD_NAMES`). Raises :class:`InvalidInput`
+    listing the choices for another name."""
+    if name not in OBJECT_NAMES:
+        raise InvalidInput(f"unknown built-in object {name!r}", field="object.name", value=name, choices=OBJECT_NAMES)
+    spec = {"kind": "builtin", "name": name, "pose": {"x": x, "y": y, "yaw": yaw}}
     return object_from_json(spec, table_height=table_height)
 
 
@@ -77,7 +79,12 @@ def object_from_json(
         raise invalid_input(exc, field, UNION_TAGS) from None
 
     if kind == "builtin":
-        base = dict(_BUILTINS[model.name], name=model.name)
+        if model.name in HOUSEHOLD_NAMES:
+            from softsig_service.objects.household import household_json
+
+            base = household_json(model.name)
+        else:
+            base = dict(_BUILTINS[model.name], name=model.name)
         base.update({k: spec[k] for k in ("mass", "friction", "pose") if k in spec})
         return object_from_json(base, table_height=table_height, field=field)
     if kind == "points":

@@ -220,11 +220,12 @@ class StoredObjectSpec(Strict):
 
 
 class BuiltinObjectSpec(Strict):
-    """One of the objects of docs/design.md §7 (box, apple, cylinder), optionally with another mass, friction or
-    pose."""
+    """One of the objects of docs/design.md §7 (box, apple, cylinder) or a shipped household mesh (mug, banana,
+    power_drill, mustard_bottle: softsig_service/objects/meshes/README.md), optionally with another mass, friction
+    or pose."""
 
     kind: Literal["builtin"]
-    name: Literal["box", "apple", "cylinder"]
+    name: Literal["box", "apple", "cylinder", "mug", "banana", "power_drill", "mustard_bottle"]
     mass: Mass | None = None
     friction: float | None = Field(None, gt=0.0, le=10.0, strict=True)
     pose: ObjectPose | None = None

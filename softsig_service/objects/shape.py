@@ -29,7 +29,8 @@ JSON schema of :func:`object_from_json` (unknown keys are rejected)::
     {"kind": "points",    "points": [[x, y, z], ...], "frame_id": "base_link",
                           "filter_outliers": true,             ...}   a segmented cloud: planned as its conservative
                                                                       solid, a mesh (objects/cloud.py, docs/objects.md)
-    {"kind": "builtin",   "name": "box" | "apple" | "cylinder", ...}  the objects of docs/design.md §7
+    {"kind": "builtin",   "name": "box" | "apple" | "cylinder", ...}  the objects of docs/design.md §7, or
+                          "mug" | "banana" | "power_drill" | "mustard_bottle": real meshes (objects/household.py)
     common keys: "mass": kg (> 0; required except for builtin), "friction": (> 0, default 1.0),
                  "name": str, "pose": {"x": m, "y": m, "yaw": rad, "z": m (optional centre height)}
                  (default pose x = 0.5, y = 0.0, yaw = 0.0: in front of the robot)
@@ -63,6 +64,11 @@ IntArray = NDArray[np.int64]
 ObjectKind = Literal["box", "cylinder", "sphere", "ellipsoid", "mesh"]
 OBJECT_KINDS: tuple[str, ...] = ("box", "cylinder", "sphere", "ellipsoid", "mesh")
 BUILTIN_NAMES: tuple[str, ...] = ("box", "apple", "cylinder")
+"""The objects of the reference experiment (docs/design.md §7, Table I)."""
+HOUSEHOLD_NAMES: tuple[str, ...] = ("mug", "banana", "power_drill", "mustard_bottle")
+"""Real household objects shipped as meshes (:mod:`softsig_service.objects.household`)."""
+OBJECT_NAMES: tuple[str, ...] = (*BUILTIN_NAMES, *HOUSEHOLD_NAMES)
+"""Every name a ``{"kind": "builtin"}`` object may have."""
 CYLINDER_ORIENTATIONS: tuple[str, ...] = ("lying", "standing")
 
 DEFAULT_FRICTION = 1.0

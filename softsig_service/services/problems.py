@@ -22,6 +22,7 @@ from softsig_service.errors import (
     SoftsigError,
     TimeLimitExceeded,
     Unauthorized,
+    UnsupportedMediaType,
 )
 from softsig_service.services.observability import request_id_var
 from softsig_service.services.serialize import to_jsonable
@@ -36,6 +37,7 @@ _STATUS: tuple[tuple[type[SoftsigError], int], ...] = (
     (Conflict, 409),
     (PreconditionFailed, 412),
     (ModelTooLarge, 413),
+    (UnsupportedMediaType, 415),
     (PreconditionRequired, 428),
     (NotAvailable, 501),
     (ServiceBusy, 503),

@@ -90,8 +90,8 @@ SAMPLES: dict[str, Callable[[TestClient], tuple[str, Request, Request]]] = {
         {"json": {"object": BOX}},
         {"json": {"object": {"kind": "builtin", "name": "apple"}}},
     ),
-    "/v1/objects/files": lambda api: (
-        "/v1/objects/files",
+    "/v1/objects (file)": lambda api: (
+        "/v1/objects",
         {"files": {"file": ("box.obj", _obj_box(0.1))}, "data": {"mass": "0.1"}, "headers": MULTIPART},
         {"files": {"file": ("box.obj", _obj_box(0.2))}, "data": {"mass": "0.1"}, "headers": MULTIPART},
     ),
@@ -138,7 +138,8 @@ def api(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
 
 
 def test_every_creating_operation_has_a_sample(api: TestClient) -> None:
-    assert creating_operations(api.app.openapi()) == set(SAMPLES)  # type: ignore[attr-defined]
+    # an operation that takes two media types has a sample of each ("<path> (file)" the second)
+    assert creating_operations(api.app.openapi()) == {k.split(" ")[0] for k in SAMPLES}  # type: ignore[attr-defined]
 
 
 @pytest.mark.parametrize("operation", sorted(SAMPLES))

@@ -76,8 +76,8 @@ NOT_STATABLE: dict[str, str] = {
     "POST /v1/experiments": "the hand must be registered (registry state)",
     "POST /v1/hands/{hand}/signatures/stiffness": "the object must be one the hand can grasp: resting on the table, "
     "between its fingers when they close (a relation with the hand's geometry)",
-    "POST /v1/objects": "as a plan's object: resting above the table, a mesh's faces indexing its vertices",
-    "POST /v1/objects/files": "the file must be a mesh or cloud of the type its name says: JSON Schema sees binary",
+    "POST /v1/objects": "as a plan's object: resting above the table, a mesh's faces indexing its vertices; a file "
+    "must be a mesh or cloud of the type its name says (JSON Schema sees binary)",
     "POST /v1/segmentations": "the cloud must hold a horizontal table plane and something standing on it",
     "POST /v1/hands/{hand}/signatures/capture": "the grid's simulations (a product of step, half_width, n_theta "
     "and holdout) are capped, and its object must be graspable by the hand",
