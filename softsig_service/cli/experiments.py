@@ -182,9 +182,14 @@ def validate(
         for r in results:
             verdict = "success" if r.success else f"FAILED: {r.reason}"
             p = r.perturbation
+            from softsig_service.simulation.rollout import SETTLE_DROP
+
+            settled = ""
+            if r.settle_drop is not None and r.settle_drop > SETTLE_DROP:
+                settled = f"  settled {r.settle_drop * 1000:.1f} mm onto the table first"
             lines.append(
                 f"  seed {r.seed:>10d}  {verdict:28s} lift {r.lift_height * 1000:6.1f} mm  offset yaw "
-                f"{p.d_yaw:+.3f} rad, x {p.dx * 1000:+.1f} mm, y {p.dy * 1000:+.1f} mm  ({r.wall_time:.2f} s)"
+                f"{p.d_yaw:+.3f} rad, x {p.dx * 1000:+.1f} mm, y {p.dy * 1000:+.1f} mm  ({r.wall_time:.2f} s)" + settled
             )
         if video is not None:
             lines.append(f"  wrote {video}")

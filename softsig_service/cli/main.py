@@ -62,6 +62,9 @@ def plan(
     sigma_t: Annotated[float, typer.Option("--sigma-t", help="std. dev. of its x and y [m] (R)")] = 0.0,
     capture: CaptureOption = None,
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+    image: Annotated[
+        Path | None, typer.Option("--image", help="write the plan's top view (PNG), as GET /v1/plans/{id}/image.png")
+    ] = None,
 ) -> None:
     """Plan a UR5 top grasp of an object on the table with strategy S, C or R."""
     from softsig_service.planning.planner import Planner
@@ -79,6 +82,12 @@ def plan(
         )  # fmt: skip
         result = Planner().plan(request)
         data = result.to_json_dict()
+        if image is not None:
+            from softsig_service.hands.model import resolve_hand_path
+            from softsig_service.services.plan_image import render_plan_png
+
+            image.parent.mkdir(parents=True, exist_ok=True)
+            image.write_bytes(render_plan_png(data, str(resolve_hand_path(hand)), Settings()))
 
         def text() -> list[str]:
             lines = [f"{result.hand} / {request.obj.name or request.obj.kind} / strategy {result.strategy}: "

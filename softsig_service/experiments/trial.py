@@ -52,6 +52,9 @@ class TrialResult:
         sim_time: [s] simulated time. wall_time: [s] wall time of the whole trial (plan + IK + simulation).
         timing: [s] wall time per part: ``plan``, ``ik``, ``sim``.
         arm_collision_time: [s] sim time of the first arm collision (module docstring; None: none).
+        settle_drop: [m] how far the object fell before the hand closed: above
+            :data:`~softsig_service.simulation.rollout.SETTLE_DROP`, it was given above the table and settled
+            (its lift is counted from where it came to rest); None when the approach was not simulated to its end.
     """
 
     seed: int
@@ -76,6 +79,7 @@ class TrialResult:
     touched_in_lift: bool = False
     sag: float | None = None
     slip: float | None = None
+    settle_drop: float | None = None
 
     def to_json_dict(self) -> dict[str, Any]:
         """A flat JSON record (units: m, rad, s); the perturbation as ``{"d_yaw", "dx", "dy"}``."""
@@ -211,6 +215,7 @@ def run_trial(
         touched_in_lift=sim.touched_in_lift,
         sag=None if sim.unstable else cfg.lift - sim.rise,
         slip=sim.slip,
+        settle_drop=sim.settle_drop,
         **common,
     )
 

@@ -186,6 +186,11 @@ def line_ik(ur5: UR5, T_start: FloatArray, T_end: FloatArray, q_start: FloatArra
     return np.array(out)
 
 
+SETTLE_DROP = 0.001
+"""[m] an object whose centre fell more than this during the approach was given above the table: it settled
+(an object resting on the table sinks by well under it into the soft contact)."""
+
+
 @dataclass
 class SimOutcome:
     """What a simulated trial records for the judge (world frame, SI units).
@@ -201,6 +206,9 @@ class SimOutcome:
         unstable: the simulation diverged.
         sim_time: [s] simulated time.
         slip: [m] the object's displacement in the flange frame during the hold (None: not reached).
+        settle_drop: [m] how far the object's centre fell during the approach, before the hand closed: an object
+            given above the table falls onto it and settles (its rise is then counted from where it came to
+            rest); about 0 for an object resting on the table. None when the approach did not end.
     """
 
     rise: float = 0.0
@@ -213,6 +221,7 @@ class SimOutcome:
     unstable: bool = False
     sim_time: float = 0.0
     slip: float | None = None
+    settle_drop: float | None = None
 
 
 def judge(sim: SimOutcome, cfg: RolloutConfig) -> str | None:
@@ -259,7 +268,7 @@ class Run:
             out.unstable = True
             return False
         contacts = scene.contact_summary(data)
-        arm_hit = contacts.arm_table or (contacts.arm_object and not grasping)
+        arm_hit = contacts.arm_table or contacts.arm_obstacle or (contacts.arm_object and not grasping)
         if arm_hit and out.arm_collision_time is None:
             out.arm_collision_time = float(data.time)
         if grasping and contacts.object_hand:
@@ -289,6 +298,15 @@ class Run:
             if after_tick is not None:
                 after_tick()
         return True
+
+    def settled(self) -> None:
+        """Record how far the object fell before the closure; one that fell more than :data:`SETTLE_DROP` (given
+        above the table) has its rise counted from where it came to rest."""
+        z = float(self.scene.object_position(self.data)[2])
+        self.out.settle_drop = self.z0 - z
+        if self.out.settle_drop > SETTLE_DROP:
+            self.z0 = z
+            self.out.max_rise = 0.0
 
     def finish(self, ok: bool, p_hold: FloatArray) -> SimOutcome:
         """The outcome, with what the end of the hold shows when the trial ran to it (``ok``); ``p_hold`` [m] is
@@ -343,6 +361,8 @@ def simulate(
         return run.phase(duration, arm, hand, grasping, frame)
 
     ok = phase(cfg.approach_time, lambda t: _interp(approach, _quintic(t / cfg.approach_time)), open_hand, False)
+    if ok:
+        run.settled()
     ok = ok and phase(closure.duration + closure.settle, lambda _t: q_grasp, ramp, False)
     if ok:
         run.out.touching_after_close = scene.contact_summary(data).object_hand

@@ -210,6 +210,8 @@ def _index(model: mujoco.MjModel, hand: HandModel, hand_ref: str, table_height: 
     geom_body = model.geom_bodyid
     hand_geoms = np.flatnonzero(in_hand[geom_body])
     object_geoms = np.flatnonzero(geom_body == obj)
+    obstacle_bodies = [b for b in range(model.nbody) if model.body(b).name.startswith(OBSTACLE_BODY)]
+    obstacle_geoms = np.flatnonzero(np.isin(geom_body, obstacle_bodies))
     arm_bodies = {
         body_id(n)
         for n in (
@@ -249,6 +251,7 @@ def _index(model: mujoco.MjModel, hand: HandModel, hand_ref: str, table_height: 
         table_geom=int(model.geom(TABLE_GEOM).id),
         flange_body=body_id(FLANGE_FRAME),
         mount_body=mount,
+        obstacle_geoms=obstacle_geoms.astype(np.int64),
     )
 
 

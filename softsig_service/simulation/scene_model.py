@@ -6,7 +6,7 @@ indices of its parts) and what it reports (contacts, the object's pose in the fl
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import mujoco
@@ -43,7 +43,7 @@ TABLE_FRICTION = 0.5
 TABLE_HALF_SIZE: tuple[float, float] = (0.9, 0.9)
 """Half-sizes [m] of the table top as drawn (centred at x = 0.3 m). For contacts it is the infinite plane
 z = ``table_height`` (cheaper than a box; every reachable object lies on it)."""
-GEOM_OTHER, GEOM_OBJECT, GEOM_HAND, GEOM_ARM, GEOM_TABLE = 0, 1, 2, 3, 4
+GEOM_OTHER, GEOM_OBJECT, GEOM_HAND, GEOM_ARM, GEOM_TABLE, GEOM_OBSTACLE = 0, 1, 2, 3, 4, 5
 """Geom classes of :attr:`Scene.geom_class`."""
 OBJECT_TORSIONAL_FRICTION = 0.005
 """[m] torsional friction of the object (``condim = 4``)."""
@@ -52,11 +52,13 @@ OBJECT_ROLLING_FRICTION = 0.0001
 
 
 class ContactSummary(NamedTuple):
-    """Which pairs touch: the object and the hand, an arm link and the table, an arm link and the object."""
+    """Which pairs touch: the object and the hand, an arm link and the table, an arm link and the object, an arm
+    link and an obstacle."""
 
     object_hand: bool
     arm_table: bool
     arm_object: bool
+    arm_obstacle: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,6 +78,8 @@ class Scene:
         posture_qpos: (scene qpos address, open value) to set before a posture closure starts.
         object_body: body id of the object; object_qpos: qpos address of its free joint (xyz then quat wxyz).
         object_geoms, hand_geoms, arm_geoms: geom ids of the object, the hand (``mount`` and below), the arm.
+        obstacle_geoms: geom ids of the obstacles' free bodies (the hand may push them; the arm must not touch
+            them).
         table_geom: geom id of the table.
         flange_body: body id of ``tool0``; mount_body: body id of the hand's ``mount`` (the same frame).
     """
@@ -99,6 +103,7 @@ class Scene:
     table_geom: int
     flange_body: int
     mount_body: int
+    obstacle_geoms: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @property
     def timestep(self) -> float:
@@ -141,7 +146,7 @@ class Scene:
         """Which classes of geoms touch in the current contacts (distance <= 0: penetrating, carrying force)."""
         n = data.ncon
         if n == 0:
-            return ContactSummary(False, False, False)
+            return ContactSummary(False, False, False, False)
         con = data.contact
         cls = self.geom_class[con.geom[:n]]
         cls = cls[con.dist[:n] <= 0.0]
@@ -150,7 +155,10 @@ class Scene:
         def pair(a: int, b: int) -> bool:
             return bool(np.any(((c1 == a) & (c2 == b)) | ((c1 == b) & (c2 == a))))
 
-        return ContactSummary(pair(GEOM_OBJECT, GEOM_HAND), pair(GEOM_ARM, GEOM_TABLE), pair(GEOM_ARM, GEOM_OBJECT))
+        return ContactSummary(
+            pair(GEOM_OBJECT, GEOM_HAND), pair(GEOM_ARM, GEOM_TABLE), pair(GEOM_ARM, GEOM_OBJECT),
+            pair(GEOM_ARM, GEOM_OBSTACLE),
+        )  # fmt: skip
 
     def object_touches_table(self, data: mujoco.MjData) -> bool:
         """Whether an object geom touches the table in the current contacts (distance <= 0)."""
@@ -171,9 +179,10 @@ class Scene:
 
     @functools.cached_property
     def geom_class(self) -> NDArray[np.int8]:
-        """Per geom: :data:`GEOM_OTHER`, :data:`GEOM_OBJECT`, :data:`GEOM_HAND`, :data:`GEOM_ARM` or
-        :data:`GEOM_TABLE`."""
+        """Per geom: :data:`GEOM_OTHER`, :data:`GEOM_OBJECT`, :data:`GEOM_HAND`, :data:`GEOM_ARM`,
+        :data:`GEOM_TABLE` or :data:`GEOM_OBSTACLE`."""
         cls = np.full(self.model.ngeom, GEOM_OTHER, dtype=np.int8)
+        cls[self.obstacle_geoms] = GEOM_OBSTACLE
         cls[self.object_geoms] = GEOM_OBJECT
         cls[self.hand_geoms] = GEOM_HAND
         cls[self.arm_geoms] = GEOM_ARM

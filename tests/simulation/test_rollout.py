@@ -215,7 +215,7 @@ def test_validate_object_file_and_errors(cli: typer.Typer, tmp_path: Path) -> No
     res = CliRunner().invoke(cli, ["validate", "--hand", "parallel_gripper", "--object", "ball"])
     assert (
         res.exit_code == 2
-        and "valid: PATH.json, PATH.obj, PATH.pcd, PATH.ply, PATH.stl, apple, box, cylinder" in res.output
+        and "valid: PATH.json, PATH.obj, PATH.pcd, PATH.ply, PATH.stl, apple, banana, box, cylinder, mug" in res.output
     )
     res = CliRunner().invoke(cli, ["validate", "--hand", "no_such_hand", "--object", "box"])
     assert res.exit_code == 2 and "unknown hand" in res.output

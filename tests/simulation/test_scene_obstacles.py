@@ -49,3 +49,32 @@ def test_a_hand_planned_blind_pushes_the_obstacle_and_a_told_planner_refuses() -
     assert not told.success and told.reason == "collision:obstacle[0]"  # type: ignore[attr-defined]
     still, far = _track("parallel_gripper", obstacle_far=True, plan_knows=True)
     assert still < 0.002 and far.success, (still, far)  # type: ignore[attr-defined]
+
+
+def test_an_arm_link_on_an_obstacle_is_an_arm_contact() -> None:
+    from softsig_service.arm.ur5 import HOME_Q, load_ur5
+    from softsig_service.simulation.scene_model import GEOM_OBSTACLE
+
+    T = load_ur5().frame_pose(np.array(HOME_Q), "forearm_link")
+    on_forearm = box((0.06, 0.06, 0.06), 0.3, x=float(T[0, 3]), y=float(T[1, 3]), z=float(T[2, 3]), yaw=0.0)
+    scene = build_scene("parallel_gripper", TARGET, obstacles=(on_forearm, POST))
+    assert len(scene.obstacle_geoms) >= 2 and set(scene.geom_class[scene.obstacle_geoms]) == {GEOM_OBSTACLE}
+    data = scene.make_data(np.array(HOME_Q), TARGET.primitive_pose)
+    contacts = scene.contact_summary(data)
+    assert contacts.arm_obstacle and not contacts.arm_object and not contacts.arm_table
+    clear = build_scene("parallel_gripper", TARGET, obstacles=(POST,))
+    assert not clear.contact_summary(clear.make_data(np.array(HOME_Q), TARGET.primitive_pose)).arm_obstacle
+
+
+def test_an_object_given_above_the_table_settles_and_is_judged_from_its_rest() -> None:
+    from softsig_service.objects import object_from_json
+    from softsig_service.simulation.rollout import SETTLE_DROP
+
+    resting = run_trial("parallel_gripper", TARGET, "S", seed=0)
+    assert resting.success and resting.settle_drop is not None and abs(resting.settle_drop) < SETTLE_DROP
+    above = object_from_json({"kind": "builtin", "name": "box", "pose": {"x": 0.5, "y": 0.0, "yaw": 0.0,
+                                                                          "z": 0.025 + 0.03}})  # fmt: skip
+    plan = default_planner().plan(PlanRequest(hand="parallel_gripper", obj=TARGET, strategy="S"))
+    fell = run_trial("parallel_gripper", above, "S", seed=0, plan=plan)  # the grasp of where it comes to rest
+    assert fell.settle_drop is not None and abs(fell.settle_drop - 0.03) < 0.003, fell.settle_drop
+    assert fell.success and abs(fell.lift_height - resting.lift_height) < 0.003, (fell.lift_height, resting)
