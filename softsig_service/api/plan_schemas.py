@@ -12,7 +12,8 @@ from typing import Any, Literal
 from pydantic import Field
 
 from softsig_service.api.schemas import ClosureCriterion, CsMethod, HandName, JointAngle, Out, PoseOut, Vector3
-from softsig_service.objects.schema import MAX_OBSTACLES, Integer, ObjectSpec, SceneFields
+from softsig_service.objects.schema import FRAME_PATTERN, MAX_OBSTACLES, WORLD_FRAME, Integer, ObjectSpec, SceneFields
+from softsig_service.planning.request import MAX_CANDIDATES
 
 
 class PlanIn(SceneFields):
@@ -55,6 +56,137 @@ class PlanIn(SceneFields):
     store: bool = Field(
         True, strict=True, description="store the plan (GET /v1/plans/{id}, image.png); false: id is null"
     )
+    candidates: Integer = Field(
+        1, ge=1, le=MAX_CANDIDATES, strict=True,
+        description="how many distinct, fully checked grasps to return in grasps, best first (1: the strategy's)",
+    )  # fmt: skip
+    output_frame: str = Field(
+        WORLD_FRAME, pattern=FRAME_PATTERN,
+        description="frame of every returned pose and direction: base_link, base (the UR controller's: base_link "
+        "turned by pi about z), object, or a frame of frames",
+    )  # fmt: skip
+
+
+class Duration(Out):
+    """builtin_interfaces/Duration."""
+
+    sec: int
+    nanosec: int
+
+
+class Stamp(Out):
+    """builtin_interfaces/Time."""
+
+    sec: int
+    nanosec: int
+
+
+class Header(Out):
+    """std_msgs/Header (a zero stamp: the answer is not tied to a time)."""
+
+    stamp: Stamp
+    frame_id: str
+
+
+class TrajectoryPoint(Out):
+    """trajectory_msgs/JointTrajectoryPoint: positions [rad or the actuator's unit], velocities [per s]."""
+
+    positions: list[float]
+    velocities: list[float]
+    accelerations: list[float]
+    effort: list[float]
+    time_from_start: Duration
+
+
+class JointTrajectory(Out):
+    """trajectory_msgs/JointTrajectory."""
+
+    header: Header
+    joint_names: list[str]
+    points: list[TrajectoryPoint]
+
+
+class Point(Out):
+    """geometry_msgs/Point (or Vector3) [m]."""
+
+    x: float
+    y: float
+    z: float
+
+
+class Orientation(Out):
+    """geometry_msgs/Quaternion."""
+
+    x: float
+    y: float
+    z: float
+    w: float
+
+
+class PoseMsg(Out):
+    """geometry_msgs/Pose."""
+
+    position: Point
+    orientation: Orientation
+
+
+class PoseStamped(Out):
+    """geometry_msgs/PoseStamped."""
+
+    header: Header
+    pose: PoseMsg
+
+
+class Vector3Stamped(Out):
+    """geometry_msgs/Vector3Stamped (a unit direction)."""
+
+    header: Header
+    vector: Point
+
+
+class GripperTranslation(Out):
+    """moveit_msgs/GripperTranslation: a direction and distances [m]."""
+
+    direction: Vector3Stamped
+    desired_distance: float
+    min_distance: float
+
+
+class MoveitGrasp(Out):
+    """moveit_msgs/Grasp, field for field (docs/planning.md)."""
+
+    id: str
+    pre_grasp_posture: JointTrajectory
+    grasp_posture: JointTrajectory
+    grasp_pose: PoseStamped
+    grasp_quality: float
+    pre_grasp_approach: GripperTranslation
+    post_grasp_retreat: GripperTranslation
+    post_place_retreat: GripperTranslation
+    max_contact_force: float
+    allowed_touch_objects: list[str]
+
+
+class RankedGrasp(Out):
+    """One of a plan's grasps, best first: every one passed the IK, approach, lift and collision checks."""
+
+    rank: int = Field(description="1 for the best")
+    id: str = Field(description="hand/strategy/object/rank, as moveit_grasp.id")
+    label: str = Field(description="which candidate: the strategy's own yaw branch, or theta, shift and branch")
+    primary: bool = Field(description="the strategy's own pose (else an alternative)")
+    grasp_quality: float = Field(ge=0.0, le=1.0, description="estimated probability of carrying the object")
+    quality_model: Literal["capture", "geometric"] = Field(
+        description="capture: the hand's capture model of the object; geometric: the stated geometric model"
+    )
+    grasp_pose: PoseOut
+    pre_grasp_pose: PoseOut
+    joint_positions: list[float] = Field(description="UR5 joints at the grasp [rad]")
+    pre_grasp_joint_positions: list[float] = Field(description="UR5 joints at the pre-grasp [rad]")
+    clearance: float | None = Field(None, description="[m] from the open hand to table and object at the grasp")
+    ik_residual: float | None = Field(None, description="[m] largest IK position residual")
+    approach_trajectory: JointTrajectory = Field(description="pre-grasp to grasp, as the validation executes it")
+    retreat_trajectory: JointTrajectory = Field(description="the lift after the grasp, as the validation executes")
+    moveit_grasp: MoveitGrasp
 
 
 class Approach(Out):
@@ -64,6 +196,7 @@ class Approach(Out):
     frame_id: str = "base_link"
     desired_distance: float
     min_distance: float
+    retreat_distance: float = Field(description="[m] the lift after the grasp, straight up (post_grasp_retreat)")
 
 
 class Quality(Out):
@@ -129,6 +262,11 @@ class PlanOut(Out):
     timing: Timing
     closure: ClosureCommand
     solver: Solver
+    output_frame: str = Field(WORLD_FRAME, description="the frame of every pose and direction of the plan")
+    output_frame_pose: PoseOut | None = Field(None, description="the pose of output_frame in base_link")
+    grasps: list[RankedGrasp] = Field(
+        default_factory=list, description="the feasible grasps, best first (the plan's own first)"
+    )
     links: dict[str, str] = Field(default_factory=dict, description="URLs of the stored plan and its image")
     hand_revision: int = Field(description="the registry's revision of the hand the plan was made with")
 

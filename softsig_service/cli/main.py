@@ -65,6 +65,13 @@ def plan(
     image: Annotated[
         Path | None, typer.Option("--image", help="write the plan's top view (PNG), as GET /v1/plans/{id}/image.png")
     ] = None,
+    candidates: Annotated[
+        int, typer.Option("--candidates", min=1, max=12, help="distinct checked grasps to return, best first")
+    ] = 1,
+    output_frame: Annotated[
+        str,
+        typer.Option("--output-frame", help="frame of the answer's poses: base_link | base (UR controller) | object"),
+    ] = "base_link",
 ) -> None:
     """Plan a UR5 top grasp of an object on the table with strategy S, C or R."""
     from softsig_service.planning.planner import Planner
@@ -77,11 +84,14 @@ def plan(
         request = PlanRequest(
             hand=hand, obj=target, strategy=strategy,  # type: ignore[arg-type]
             current_q=q, closing_axis=closing_axis,  # type: ignore[arg-type]
-            sigma_r=sigma_r, sigma_t=sigma_t, capture=model,
+            sigma_r=sigma_r, sigma_t=sigma_t, capture=model, candidates=candidates,
             **plan_option_fields(cs_method, criterion, placement),  # type: ignore[arg-type]
         )  # fmt: skip
+        from softsig_service.objects.frames import output_frame_pose
+
+        frame = output_frame_pose(output_frame, None, target.pose)
         result = Planner().plan(request)
-        data = result.to_json_dict()
+        data = result.to_json_dict(output_frame, frame)
         if image is not None:
             from softsig_service.hands.model import resolve_hand_path
             from softsig_service.services.plan_image import render_plan_png
@@ -92,9 +102,9 @@ def plan(
         def text() -> list[str]:
             lines = [f"{result.hand} / {request.obj.name or request.obj.kind} / strategy {result.strategy}: "
                      + ("success" if result.success else "FAILED: " + ", ".join(result.reasons))]  # fmt: skip
-            if result.grasp_pose is not None:
-                p = result.grasp_pose[:3, 3]
-                lines.append(f"  grasp flange at ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m in base_link")
+            if data["grasp_pose"] is not None:
+                p = data["grasp_pose"]["position"]
+                lines.append(f"  grasp flange at ({p['x']:.4f}, {p['y']:.4f}, {p['z']:.4f}) m in {output_frame}")
             if result.joint_positions is not None:
                 lines.append("  joints " + ", ".join(f"{v:+.4f}" for v in result.joint_positions) + " rad")
             qual = result.quality
@@ -102,6 +112,10 @@ def plan(
                 lines.append(f"  alignment error {qual['alignment_error']:.2e} rad, clearance {qual['clearance']}")
             if qual.get("expected_capture") is not None:
                 lines.append(f"  expected capture under the stated noise {qual['expected_capture']:.3f}")
+            for g in data["grasps"][1:]:
+                p = g["grasp_pose"]["position"]
+                lines.append(f"  grasp {g['rank']}: quality {g['grasp_quality']:.3f} ({g['quality_model']}), flange "
+                             f"({p['x']:.4f}, {p['y']:.4f}, {p['z']:.4f}) m, {g['label']}")  # fmt: skip
             lines.append(f"  time {result.timing['total'] * 1e3:.1f} ms")
             return lines
 

@@ -117,11 +117,12 @@ CaptureOption = Annotated[
 
 
 def read_capture(path: Path | None, *, hand: str = "", obj: Any = None, strategy: str = "") -> Any:
-    """The :class:`~softsig_service.signatures.capture.CaptureModel` in ``path``; without a path, for strategy R,
-    the model shipped with the hand for an object of the shape of ``obj`` (a ``TableObject``; the lookup the
+    """The :class:`~softsig_service.signatures.capture.CaptureModel` in ``path``; without a path, the model shipped
+    with the hand for an object of the shape of ``obj`` (strategy R plans with it; every strategy's grasp_quality
+    comes from it) (a ``TableObject``; the lookup the
     service makes too, :func:`~softsig_service.experiments.capture.shipped_capture_for`), else None.
     :class:`InvalidInput` naming ``capture`` when it cannot be read."""
-    if path is None and strategy == "R" and obj is not None:
+    if path is None and obj is not None:
         from softsig_service.experiments.capture import shipped_capture_for
         from softsig_service.hands.model import builtin_hand_names, builtin_hands_dir
 

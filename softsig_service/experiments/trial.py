@@ -21,13 +21,14 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from softsig_service.arm.trajectory import arm_paths, duration
 from softsig_service.arm.ur5 import UR5
 from softsig_service.config import Settings
 from softsig_service.errors import InvalidInput
 from softsig_service.objects import TableObject
 from softsig_service.planning.planner import Planner
 from softsig_service.planning.request import GraspPlan, PlanRequest
-from softsig_service.simulation.rollout import FrameCallback, Perturbation, RolloutConfig, arm_paths, judge, simulate
+from softsig_service.simulation.rollout import FrameCallback, Perturbation, RolloutConfig, judge, simulate
 from softsig_service.simulation.scene import build_scene
 
 
@@ -186,10 +187,14 @@ def run_trial(
     T_grasp = np.asarray(plan.grasp_pose, dtype=np.float64)
     T_pre = np.asarray(plan.pre_grasp_pose, dtype=np.float64)
     q_pre = np.asarray(plan.pre_grasp_joint_positions, dtype=np.float64)
-    paths = arm_paths(ur5, T_pre, T_grasp, q_pre, cfg)
+    paths = arm_paths(ur5, T_pre, T_grasp, q_pre, cfg.lift, cfg.waypoints)
     if isinstance(paths, str):
         return early(paths, {"plan": t_plan, "ik": time.perf_counter() - t0})
     approach, lift = paths
+    cfg = dataclasses.replace(  # the plan's trajectories' durations (one source: softsig_service.arm.trajectory)
+        cfg, approach_time=duration(approach, cfg.approach_time, ur5.velocity_limit),
+        lift_time=duration(lift, cfg.lift_time, ur5.velocity_limit),
+    )  # fmt: skip
     t_ik = time.perf_counter() - t0
 
     t0 = time.perf_counter()

@@ -67,3 +67,32 @@ def to_world(points: FloatArray, frame_id: str, frames: Frames | None, field: st
         )  # fmt: skip
     T = known[frame_id]
     return np.asarray(points @ T[:3, :3].T + T[:3, 3], dtype=np.float64)
+
+
+UR_BASE_FRAME = "base"
+"""The UR controller's base frame (the teach pendant's, URScript's): ``base_link`` turned by pi about z, as the
+ROS descriptions of the UR arms define it (x and y of the two frames point opposite ways)."""
+OBJECT_FRAME = "object"
+"""The planned object's own frame (its pose in ``base_link``: centre, principal axes)."""
+T_BASE_LINK_UR_BASE: FloatArray = np.diag([-1.0, -1.0, 1.0, 1.0])
+"""``T_base_link_base``: a half turn about z."""
+
+
+def output_frame_pose(
+    name: str, frames: Frames | None, object_pose: FloatArray, field: str = "output_frame"
+) -> FloatArray:
+    """``T_base_link_frame`` (4x4) of the frame an answer is expressed in: ``base_link``, the UR controller's
+    ``base``, the ``object``'s frame (its pose ``object_pose``) or one of the request's ``frames``. Raises
+    :class:`InvalidInput` naming ``field`` with the choices for another name."""
+    if name == WORLD_FRAME:
+        return np.eye(4)
+    if name == UR_BASE_FRAME:
+        return T_BASE_LINK_UR_BASE.copy()
+    if name == OBJECT_FRAME:
+        return np.asarray(object_pose, dtype=np.float64).copy()
+    known = frames or {}
+    if name not in known:
+        raise InvalidInput("unknown output frame: base_link, base, object or a frame of the request's frames",
+                           field=field, value=name, choices=(WORLD_FRAME, UR_BASE_FRAME, OBJECT_FRAME,
+                                                             *sorted(known)))  # fmt: skip
+    return np.asarray(known[name], dtype=np.float64).copy()

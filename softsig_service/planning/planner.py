@@ -14,12 +14,21 @@ points hand +z (the approach) down. The planner:
    of the open reference points' bounding box, C: the CS anchor) for ablations;
 2. descends from high above along the approach until the open hand comes within ``margin`` of the table or the
    object (the grasp pose), and raises the pre-grasp ``approach_distance`` back along the approach;
-3. solves the UR5 IK for the grasp (seeded by the current configuration), the pre-grasp (seeded by the grasp)
-   and waypoints of the straight approach between them; checks arm + hand against table, object and itself
-   at every one of them (coal), except the hand's pairs with table and object where the descent has shown the
-   whole approach clear of them (:meth:`Planner._place`);
+3. solves the UR5 IK for the grasp (seeded by the current configuration) and the pre-grasp (seeded by the grasp),
+   and the joint paths of the approach and the lift exactly as the validation executes them
+   (:func:`~softsig_service.arm.trajectory.arm_paths`); checks arm + hand against table, object and itself at
+   every approach waypoint (coal), except the hand's pairs with table and object where the descent has shown the
+   whole approach clear of them (:meth:`Planner._place`), and the arm links against table and themselves along
+   the lift;
 4. returns, of the feasible branches, the one whose grasp configuration is closest to the current one.
    An infeasible request gives ``success=False`` with machine-readable ``reasons``.
+
+With ``candidates = k > 1`` it also offers the alternatives of :mod:`softsig_service.planning.ranking` (the other
+closing axis, placements shifted along the object's major axis, both yaw branches), estimates each one's
+``grasp_quality``, and checks them best first (quality, then the strategy's own pose, then the joint distance
+from the current configuration) until ``k`` distinct ones pass every check: ``grasps``, best first, the plan's
+top-level fields describing the first. With ``k = 1`` the plan is the one described above, its one grasp ranked
+with its quality.
 """
 
 from __future__ import annotations
@@ -34,6 +43,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from softsig_service.arm.collision import CollisionWorld
+from softsig_service.arm.trajectory import (
+    APPROACH_TIME,
+    LIFT,
+    LIFT_TIME,
+    MAX_JOINT_STEP,
+    arm_paths,
+    duration,
+    timed,
+)
 from softsig_service.arm.ur5 import HOME_Q, POSITION_TOLERANCE, ROTATION_TOLERANCE, UR5, load_ur5
 from softsig_service.config import Settings
 from softsig_service.planning.clearance import HandClearance, HandGeometry
@@ -41,6 +59,7 @@ from softsig_service.planning.hand_model import (
     HandPlanningModel,
     planning_model,
 )
+from softsig_service.planning.ranking import alternatives, grasp_quality
 from softsig_service.planning.request import GraspPlan, PlanRequest
 from softsig_service.planning.strategies import axis_angle_between_lines, relative_poses, strategy_s_poses
 from softsig_service.planning.strategy_r import c_relative_theta, solve_strategy_r
@@ -48,7 +67,6 @@ from softsig_service.planning.wrist_pose import solve_wrist_pose_unchecked
 
 START_HEIGHT = 0.5
 """[m] the descent starts this far above the object's centre along the approach."""
-APPROACH_WAYPOINTS = 4
 WORLDS_PER_MODEL = 8
 """Collision worlds (one per table height) a thread keeps per hand model."""
 GJK_SLACK = 1e-6
@@ -69,6 +87,14 @@ class _Candidate:
     distance: float = math.inf
     approach_clear: bool = False
     """The descent showed the hand clear of table and object all along the approach (see ``Planner._place``)."""
+    primary: bool = True
+    """The strategy's own pose (else an alternative of :mod:`softsig_service.planning.ranking`)."""
+    label: str = ""
+    quality: float = 0.0
+    quality_model: str = ""
+    approach_path: NDArray[np.float64] | None = None
+    """Joint paths (waypoints, 6) [rad] of the approach and the lift (:mod:`softsig_service.arm.trajectory`)."""
+    lift_path: NDArray[np.float64] | None = None
 
 
 class Planner:
@@ -131,6 +157,7 @@ class Planner:
         t0 = time.perf_counter()
         candidates: list[_Candidate] = []
         expected_capture: float | None = None
+        theta_r: float | None = None
         if req.strategy == "C" and req.relative_pose is None:
             sols = solve_wrist_pose_unchecked(
                 model.signature.axis, hand_point, model.points_open, center, closing, obj.table_height, req.margin
@@ -148,36 +175,61 @@ class Planner:
             theta_c = c_relative_theta(model.signature.axis, req.closing_axis)
             choice = solve_strategy_r(req.capture, req.sigma_r, req.sigma_t, theta_c)
             expected_capture = choice.expected
+            theta_r = choice.theta
             for T in relative_poses(center, obj.o1, hand_point, choice.theta, choice.u, choice.v):
                 candidates.append(_Candidate(T=T, status=f"r:{choice.status}", iterations=choice.iterations))
         else:
             for T in strategy_s_poses(center, obj.o1, hand_point):
                 candidates.append(_Candidate(T=T, status="closed_form", iterations=0))
+        for i, c in enumerate(candidates):
+            c.label = f"{req.strategy}:branch={i}"
+        if req.candidates > 1 and req.relative_pose is None:
+            candidates += self._alternatives(req, model, hand_point, closing_theta(req, model, theta_r))
         t_strategy = time.perf_counter() - t0
 
         t_ik = t_col = 0.0
         world = self._world(model, obj.table_height)
         world.set_object_unchecked(obj.primitive(), obj.primitive_pose)
         clearance = HandClearance(model.shapes, obj, obj.table_height, self._hand(model), world.placed_object)
+        quality_point = model.placement_point("R", req.placement)  # the capture model's relative poses
+        for c in candidates:
+            c.quality, c.quality_model = grasp_quality(
+                c.T, model.signature.axis, quality_point, obj, req.capture, req.sigma_r, req.sigma_t
+            )
+        # groups in rank order: the strategy's poses alone (k = 1), or best quality first, the strategy's poses
+        # first among equals (k > 1); within a group the joint distance from the current configuration decides,
+        # so a group is placed and solved only when the groups before it left places to fill
+        groups: dict[tuple[float, bool], list[_Candidate]] = {}
         for c in candidates:
             if c.reasons:
                 continue
-            t1 = time.perf_counter()
-            self._place(c, clearance, req, center)
-            t2 = time.perf_counter()
-            t_col += t2 - t1
-            if not c.reasons:
-                self._solve_grasp(c, q_now)
-            t_ik += time.perf_counter() - t2
-        # the branch closest to the current configuration first; the other only if the first fails
-        for c in sorted((c for c in candidates if not c.reasons), key=lambda c: c.distance):
-            dt_ik, dt_col = self._finish(c, req, world)
-            t_ik, t_col = t_ik + dt_ik, t_col + dt_col
-            if not c.reasons:
+            key = (0.0, True) if req.candidates == 1 else (-round(c.quality, 9), not c.primary)
+            groups.setdefault(key, []).append(c)
+        ranked: list[_Candidate] = []
+        for key in sorted(groups):
+            group = groups[key]
+            for c in group:
+                t1 = time.perf_counter()
+                self._place(c, clearance, req, center)
+                t2 = time.perf_counter()
+                t_col += t2 - t1
+                if not c.reasons:
+                    self._solve_grasp(c, q_now)
+                t_ik += time.perf_counter() - t2
+            for c in sorted((c for c in group if not c.reasons), key=lambda c: c.distance):
+                if any(_same_grasp(c, r) for r in ranked):
+                    continue
+                dt_ik, dt_col = self._finish(c, req, world)
+                t_ik, t_col = t_ik + dt_ik, t_col + dt_col
+                if not c.reasons:
+                    ranked.append(c)
+                    if len(ranked) == req.candidates:
+                        break
+            if len(ranked) == req.candidates:
                 break
 
-        feasible = [c for c in candidates if not c.reasons and c.q_pre is not None]
-        best = min(feasible, key=lambda c: c.distance) if feasible else _most_advanced(candidates)
+        feasible = ranked
+        best = ranked[0] if ranked else _most_advanced(candidates)
         R = best.T[:3, :3]
         if req.strategy in ("C", "R"):
             align = axis_angle_between_lines(R @ model.signature.axis, closing)
@@ -201,6 +253,7 @@ class Planner:
                 "frame_id": "base_link",
                 "desired_distance": req.approach_distance,
                 "min_distance": 0.5 * req.approach_distance,
+                "retreat_distance": LIFT,
             },
             quality={
                 "alignment_error": align,
@@ -215,6 +268,7 @@ class Planner:
                 "total": time.perf_counter() - t_start,
             },
             closure=model.closure,
+            grasps=[_grasp_json(c, rank, self.ur5) for rank, c in enumerate(ranked)],
             solver={
                 "status": best.status,
                 "iterations": best.iterations,
@@ -224,26 +278,39 @@ class Planner:
             },
         )
 
+    def _alternatives(
+        self, req: PlanRequest, model: HandPlanningModel, hand_point: NDArray[np.float64], thetas: tuple[float, float]
+    ) -> list[_Candidate]:
+        """The non-primary candidates of :func:`~softsig_service.planning.ranking.alternatives` (the primary ones
+        are the strategy's own poses, already proposed)."""
+        return [
+            _Candidate(T=a.T, status="alternative", iterations=0, primary=False, label=a.label)
+            for a in alternatives(req.obj, hand_point, *thetas)
+            if not a.primary
+        ]
+
     def _finish(self, c: _Candidate, req: PlanRequest, world: CollisionWorld) -> tuple[float, float]:
-        """Pre-grasp IK, approach waypoints and collision checks of a candidate with a grasp IK solution.
+        """Pre-grasp IK, the approach and lift paths the validation executes (:mod:`softsig_service.arm.trajectory`)
+        and their collision checks, for a candidate with a grasp IK solution.
 
         Returns (IK time, collision time) [s].
         """
         t0 = time.perf_counter()
-        path = self._approach_path(c, req)
+        paths = self._paths(c)
         t1 = time.perf_counter()
-        if path is not None:
-            self._check(c, world, path)
+        if paths is not None:
+            approach, lift = paths
+            self._check(c, world, approach, lift)
             if not c.reasons and req.obstacles:
-                self._check_obstacles(c, req, path)
+                self._check_obstacles(c, req, np.vstack([approach, lift[1:]]))
         return t1 - t0, time.perf_counter() - t1
 
-    def _check_obstacles(self, c: _Candidate, req: PlanRequest, path: list[NDArray[np.float64]]) -> None:
-        """Every arm link and hand shape against each obstacle, along the whole approach and at the grasp, with
-        the plan's margin [m]: the hand may touch its target, never an obstacle."""
+    def _check_obstacles(self, c: _Candidate, req: PlanRequest, path: NDArray[np.float64]) -> None:
+        """Every arm link and hand shape against each obstacle, along the whole approach, at the grasp and along
+        the lift, with the plan's margin [m]: the hand may touch its target, never an obstacle."""
         model = planning_model(req.hand, req.cs_method, self.settings, req.cs_criterion, req.hand_revision)
         world = self._world(model, req.obj.table_height, "obstacle_worlds")
-        Q = np.array(path)
+        Q = np.asarray(path)
         for i, obstacle in enumerate(req.obstacles):
             world.set_object_unchecked(obstacle.primitive(), obstacle.primitive_pose)
             report = world.check_waypoints(Q, margin=req.margin, check_table=False, check_self=False, distances=False)
@@ -300,8 +367,11 @@ class Planner:
         dq = ik.q - q_now
         c.distance = math.sqrt(float(dq @ dq))
 
-    def _approach_path(self, c: _Candidate, req: PlanRequest) -> list[NDArray[np.float64]] | None:
-        """Joint configurations from the pre-grasp down the straight approach to the grasp (None: unreachable)."""
+    def _paths(self, c: _Candidate) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """The pre-grasp IK (seeded by the grasp's) and the joint paths of the approach (pre-grasp to grasp) and the
+        lift (:func:`~softsig_service.arm.trajectory.arm_paths`); None (with the reason) where one is unreachable or
+        the approach ends on another IK branch than the grasp's solution. The grasp's joints become the approach's
+        last point (the configuration the arm arrives in)."""
         assert c.q is not None and c.T_pre is not None
         pre = self.ur5.solve_ik_unchecked(c.T_pre, c.q)
         if not pre.success:
@@ -309,30 +379,94 @@ class Planner:
             return None
         c.q_pre = pre.q
         c.ik_residual = max(c.ik_residual or 0.0, pre.position_residual)
-        path = [pre.q]
-        q = pre.q
-        for k in range(1, APPROACH_WAYPOINTS):
-            s = k / APPROACH_WAYPOINTS
-            T = c.T_pre.copy()
-            T[:3, 3] = (1 - s) * c.T_pre[:3, 3] + s * c.T[:3, 3]
-            ik = self.ur5.solve_ik_unchecked(T, q, seeds=0)  # the closed-form branch nearest q, else numeric
-            if not ik.success:
-                c.reasons.append("unreachable:approach")
-                return None
-            q = ik.q
-            path.append(q)
-        path.append(c.q)
-        if float(np.max(np.abs(np.diff(np.array(path), axis=0)))) > 0.5:
-            c.reasons.append("unreachable:approach")  # a branch flip: the arm would not move straight
+        paths = arm_paths(self.ur5, c.T_pre, c.T, pre.q)
+        if isinstance(paths, str):
+            c.reasons.append(paths)
             return None
-        return path
+        approach, lift = paths
+        if float(np.max(np.abs(approach[-1] - c.q))) > MAX_JOINT_STEP:
+            c.reasons.append("unreachable:approach")  # a branch flip: the arm would not arrive in the grasp's branch
+            return None
+        c.q = approach[-1]
+        c.approach_path, c.lift_path = approach, lift
+        return approach, lift
 
-    def _check(self, c: _Candidate, world: CollisionWorld, path: list[NDArray[np.float64]]) -> None:
+    def _check(
+        self, c: _Candidate, world: CollisionWorld, approach: NDArray[np.float64], lift: NDArray[np.float64]
+    ) -> None:
+        """Arm and hand along the approach (the hand's pairs with table and object left out where the descent showed
+        them clear); then arm links against the table and themselves along the lift (the hand holds the object,
+        which rises with it)."""
         report = world.check_waypoints(
-            np.array(path), distances=False, ignore_hand_object=c.approach_clear, ignore_hand_table=c.approach_clear
+            approach, distances=False, ignore_hand_object=c.approach_clear, ignore_hand_table=c.approach_clear
         )
+        if not report.in_collision:
+            report = world.check_waypoints(
+                lift[1:], distances=False, ignore_hand_object=True, ignore_hand_table=True, check_object=False
+            )
         if report.in_collision:
             c.reasons.extend(report.reasons)
+
+
+def closing_theta(req: PlanRequest, model: HandPlanningModel, theta_r: float | None) -> tuple[float, float]:
+    """The strategy's relative yaw [rad] (:func:`~softsig_service.planning.strategies.relative_poses`) and the one
+    that closes across the object's other axis: S puts hand +x along the major axis (0) or the minor one; C and R
+    close the closure signature across the requested axis or the other one (R: its chosen yaw, turned a quarter)."""
+    if req.strategy == "S":
+        return 0.0, math.pi / 2
+    if req.strategy == "R" and theta_r is not None:
+        return theta_r, theta_r + math.pi / 2
+    other = "major" if req.closing_axis == "minor" else "minor"
+    return c_relative_theta(model.signature.axis, req.closing_axis), c_relative_theta(model.signature.axis, other)
+
+
+SAME_POSITION = 1e-3
+"""[m] two grasps whose flange positions are this close ..."""
+SAME_ANGLE = math.radians(1.0)
+"""[rad] ... and whose orientations are this close are the same grasp (one is left out of the ranking)."""
+
+
+def _same_grasp(a: _Candidate, b: _Candidate) -> bool:
+    if float(np.linalg.norm(a.T[:3, 3] - b.T[:3, 3])) > SAME_POSITION:
+        return False
+    cos = (float(np.trace(a.T[:3, :3].T @ b.T[:3, :3])) - 1.0) / 2.0
+    return math.acos(max(-1.0, min(1.0, cos))) <= SAME_ANGLE
+
+
+def _grasp_json(c: _Candidate, rank: int, ur5: UR5) -> dict[str, object]:
+    """One ranked grasp (flange poses 4x4 in base_link, joints [rad], its timed approach and lift as joint
+    trajectories); :class:`GraspPlan` turns it into JSON."""
+    assert c.q is not None and c.q_pre is not None and c.T_pre is not None
+    assert c.approach_path is not None and c.lift_path is not None
+    return {
+        "rank": rank + 1,
+        "label": c.label,
+        "primary": c.primary,
+        "grasp_quality": c.quality,
+        "quality_model": c.quality_model,
+        "grasp_pose": c.T.copy(),
+        "pre_grasp_pose": c.T_pre.copy(),
+        "joint_positions": c.q.tolist(),
+        "pre_grasp_joint_positions": c.q_pre.tolist(),
+        "clearance": c.clearance,
+        "ik_residual": c.ik_residual,
+        "approach_trajectory": _timed(c.approach_path, APPROACH_TIME, ur5),
+        "retreat_trajectory": _timed(c.lift_path, LIFT_TIME, ur5),
+    }
+
+
+def _timed(path: NDArray[np.float64], nominal: float, ur5: UR5) -> dict[str, object]:
+    """A joint path timed as the validation executes it (:func:`~softsig_service.arm.trajectory.timed`), in the
+    form of trajectory_msgs/JointTrajectory (``time_from_start`` [s] as a number here)."""
+    total = duration(path, nominal, ur5.velocity_limit)
+    times, velocities = timed(path, total)
+    return {
+        "joint_names": list(ur5.joint_names),
+        "positions": path.tolist(),
+        "velocities": velocities.tolist(),
+        "time_from_start": times,
+        "duration": total,
+    }
 
 
 def _most_advanced(candidates: list[_Candidate]) -> _Candidate:

@@ -20,11 +20,14 @@ from softsig_service.geometry.checks import as_finite_array
 from softsig_service.geometry.quaternions import rotation_to_quat
 from softsig_service.geometry.transforms import pose_wire
 from softsig_service.objects import TableObject
-from softsig_service.objects.schema import MAX_OBSTACLES
+from softsig_service.objects.schema import MAX_OBSTACLES, WORLD_FRAME
 from softsig_service.planning.hand_model import DEFAULT_PLACEMENT, PLACEMENTS, Placement
 from softsig_service.planning.strategies import STRATEGIES
 from softsig_service.signatures.capture import CaptureModel
 from softsig_service.signatures.closure_types import CRITERIA, Criterion
+
+MAX_CANDIDATES = 12
+"""Most grasps a plan returns (the alternatives of :mod:`softsig_service.planning.ranking` number 12 at most)."""
 
 
 @dataclass(frozen=True)
@@ -56,6 +59,9 @@ class PlanRequest:
     relative_pose: tuple[float, float, float] | None = None
     """Put the hand at this relative pose (theta [rad], u, v [m]; :mod:`softsig_service.signatures.capture`)
     instead of the strategy's choice (diagnostics and the capture model's simulations)."""
+    candidates: int = 1
+    """How many distinct, fully checked grasps to return, best first (``grasps``; at most :data:`MAX_CANDIDATES`):
+    1 is the strategy's grasp alone; more adds the alternatives of :mod:`softsig_service.planning.ranking`."""
     obstacles: tuple[TableObject, ...] = ()
     """Other objects on the table (in ``base_link``, on the same table): no arm link or hand shape may come within
     ``margin`` of one anywhere on the approach or at the grasp (reason ``collision:obstacle[i]``, ``i`` its index)."""
@@ -66,6 +72,13 @@ class PlanRequest:
         for name, value in (("sigma_r", self.sigma_r), ("sigma_t", self.sigma_t)):
             if not (math.isfinite(value) and 0.0 <= value <= 1.0):
                 raise InvalidInput("must be a finite number in [0, 1]", field=name, value=value)
+        if (
+            isinstance(self.candidates, bool)
+            or not isinstance(self.candidates, int)
+            or not (1 <= self.candidates <= MAX_CANDIDATES)
+        ):
+            raise InvalidInput(f"must be an integer in [1, {MAX_CANDIDATES}]", field="candidates",
+                               value=self.candidates)  # fmt: skip
         if self.strategy == "R" and self.capture is None and self.relative_pose is None:
             raise InvalidInput("strategy R needs the hand's capture model on this object", field="capture")
         object.__setattr__(self, "obstacles", tuple(self.obstacles))
@@ -112,15 +125,54 @@ class GraspPlan:
     timing: dict[str, float]
     closure: dict[str, Any]
     solver: dict[str, Any] = field(default_factory=dict)
+    grasps: list[dict[str, Any]] = field(default_factory=list)
+    """The feasible grasps, best first (the first is the plan's own): rank, id, grasp_quality and its model,
+    flange poses (4x4, base_link) and joint positions [rad] (:func:`~softsig_service.planning.planner.Planner.plan`)."""
 
-    def to_json_dict(self) -> dict[str, Any]:
-        """The plan JSON: poses as ``{"frame_id", "position": {x,y,z}, "orientation": {x,y,z,w}}``."""
+    def to_json_dict(
+        self, frame_id: str = WORLD_FRAME, T_base_frame: NDArray[np.float64] | None = None
+    ) -> dict[str, Any]:
+        """The plan JSON with every pose and direction in the frame ``frame_id`` whose pose in ``base_link`` is
+        ``T_base_frame`` (4x4; default ``base_link`` itself): poses as ``{"frame_id", "position": {x,y,z},
+        "orientation": {x,y,z,w}}``; each grasp also as ``moveit_grasp`` (:mod:`softsig_service.planning.moveit`)
+        with its ``approach_trajectory`` and ``retreat_trajectory`` as trajectory_msgs/JointTrajectory JSON."""
+        from softsig_service.planning.moveit import joint_trajectory, moveit_grasp
+
+        T_frame = np.eye(4) if T_base_frame is None else np.asarray(T_base_frame, dtype=np.float64)
+        inverse = np.linalg.inv(T_frame)
+
+        def out(T: NDArray[np.float64]) -> NDArray[np.float64]:
+            return np.asarray(inverse @ T, dtype=np.float64)
 
         def pose(T: NDArray[np.float64] | None) -> dict[str, Any] | None:
             if T is None:
                 return None
-            return pose_wire(T[:3, 3], rotation_to_quat(T[:3, :3]), "base_link")  # the planner's own rotations
+            To = out(T)
+            return pose_wire(To[:3, 3], rotation_to_quat(To[:3, :3]), frame_id)
 
+        def turned(v: Any) -> NDArray[np.float64]:
+            return np.asarray(inverse[:3, :3] @ np.asarray(v, dtype=np.float64), dtype=np.float64)
+
+        up = turned([0.0, 0.0, 1.0])
+        approach = dict(self.approach, frame_id=frame_id)
+        if "direction" in approach:
+            approach["direction"] = turned(approach["direction"]).tolist()
+        grasps = []
+        for g in self.grasps:
+            grasp_id = f"{self.hand}/{self.strategy}/{self.object.get('name') or self.object.get('kind')}/{g['rank']}"
+            trajectories = {
+                name: joint_trajectory(t["joint_names"], t["positions"], t["time_from_start"], t["velocities"])
+                for name in ("approach_trajectory", "retreat_trajectory")
+                if (t := g.get(name)) is not None
+            }
+            message = moveit_grasp(
+                grasp_id, out(g["grasp_pose"]), frame_id, g["grasp_quality"], self.closure,
+                turned(g["grasp_pose"][:3, 2]), float(self.approach.get("desired_distance", 0.0)), up,
+                float(self.approach.get("retreat_distance", 0.0)),
+            )  # fmt: skip
+            grasps.append({**g, "id": grasp_id, "grasp_pose": pose(g["grasp_pose"]),
+                           "pre_grasp_pose": pose(g["pre_grasp_pose"]), **trajectories,
+                           "moveit_grasp": message})  # fmt: skip
         return {
             "success": self.success,
             "reasons": list(self.reasons),
@@ -132,9 +184,12 @@ class GraspPlan:
             "pre_grasp_joint_positions": self.pre_grasp_joint_positions,
             "grasp_pose": pose(self.grasp_pose),
             "pre_grasp_pose": pose(self.pre_grasp_pose),
-            "approach": self.approach,
+            "approach": approach,
             "quality": self.quality,
             "timing": self.timing,
             "closure": self.closure,
             "solver": self.solver,
+            "output_frame": frame_id,
+            "output_frame_pose": pose_wire(T_frame[:3, 3], rotation_to_quat(T_frame[:3, :3]), WORLD_FRAME),
+            "grasps": grasps,
         }

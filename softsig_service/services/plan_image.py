@@ -58,8 +58,11 @@ def render_plan_png(
         ax.plot([a[0], b[0]], [a[1], b[1]], ls="--", color=colour, lw=1, label=name)
 
     grasp = plan.get("grasp_pose")
+    # poses in the plan's output frame, drawn in base_link
+    frame = plan.get("output_frame_pose")
+    T_frame = Pose.from_wire(frame).matrix() if frame else np.eye(4)
     if grasp is not None:
-        T = Pose.from_wire(grasp).matrix()
+        T = T_frame @ Pose.from_wire(grasp).matrix()
         Rg, p = T[:3, :3], T[:3, 3]
         cs_axis = cs_anchor = None
         if manifest_path is not None:
@@ -93,7 +96,7 @@ def render_plan_png(
                 ax.plot([a[0], b[0]], [a[1], b[1]], color="#8e44ad", lw=3, label="closure signature axis")
         pre = plan.get("pre_grasp_pose")
         if pre is not None:
-            q = Pose.from_wire(pre).matrix()[:3, 3]
+            q = (T_frame @ Pose.from_wire(pre).matrix())[:3, 3]
             ax.scatter([q[0]], [q[1]], marker="x", s=50, color="#e67e22", zorder=6,
                        label=f"pre-grasp (z = {q[2]:.3f} m)")  # fmt: skip
     else:

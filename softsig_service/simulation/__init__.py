@@ -20,9 +20,7 @@ from softsig_service.simulation.rollout import (
     RolloutConfig,
     Run,
     SimOutcome,
-    arm_paths,
     judge,
-    line_ik,
     simulate,
 )
 from softsig_service.simulation.scene import build_scene
@@ -46,7 +44,6 @@ __all__ = [
     "Scene",
     "SimOutcome",
     "actuator_synergies",
-    "arm_paths",
     "break_force_table",
     "build_scene",
     "check_directions",
@@ -60,7 +57,6 @@ __all__ = [
     "grasp_stiffness_from_matrices",
     "hand_object_contacts",
     "judge",
-    "line_ik",
     "net_contact_wrench",
     "placement_target",
     "pull_test",

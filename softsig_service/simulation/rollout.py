@@ -69,7 +69,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from softsig_service.arm.ur5 import UR5
+from softsig_service.arm.trajectory import APPROACH_TIME, LIFT, LIFT_TIME, WAYPOINTS, interp, quintic
 from softsig_service.errors import InvalidInput
 from softsig_service.hands.closure import closure_command
 from softsig_service.objects import TableObject
@@ -98,21 +98,22 @@ class RolloutConfig:
         lift: [m] height the flange rises after closing (docs/design.md §7: 0.15).
         success_fraction: a carried object must have risen by at least this fraction of ``lift``
             (docs/design.md §7: 0.5, i.e. 0.075 m of a 0.15 m lift).
-        approach_time: [s] duration of the straight approach from the pre-grasp to the grasp.
-        lift_time: [s] duration of the lift.
+        approach_time: [s] nominal duration of the straight approach from the pre-grasp to the grasp (longer where
+            the joints' limits need it: :func:`softsig_service.arm.trajectory.duration`).
+        lift_time: [s] nominal duration of the lift (likewise).
         hold_time: [s] duration of the hold at the top (docs/design.md §7: 1 s).
         control_period: [s] period of the controller (servo targets updated, contacts checked); a multiple
             of the scene's time step (rounded to one).
         waypoints: number of IK waypoints along each Cartesian line (approach, lift), ends included.
     """
 
-    lift: float = 0.15
+    lift: float = LIFT
     success_fraction: float = 0.5
-    approach_time: float = 1.0
-    lift_time: float = 1.0
+    approach_time: float = APPROACH_TIME
+    lift_time: float = LIFT_TIME
     hold_time: float = 1.0
     control_period: float = 0.01
-    waypoints: int = 11
+    waypoints: int = WAYPOINTS
 
     def __post_init__(self) -> None:
         for name in ("lift", "approach_time", "lift_time", "control_period"):
@@ -151,39 +152,6 @@ class Perturbation:
 
 FrameCallback = Callable[[Scene, mujoco.MjData], None]
 """Called with the scene and its data at the frame rate of a recording (and once at the start)."""
-
-
-def _quintic(s: float) -> float:
-    """Minimum-jerk time scaling: 0 -> 0, 1 -> 1 with zero velocity and acceleration at both ends."""
-    s = min(max(s, 0.0), 1.0)
-    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
-
-
-def _interp(path: FloatArray, s: float) -> FloatArray:
-    """Point at parameter ``s`` in [0, 1] on the piecewise-linear joint path ``path`` (K, 6)."""
-    x = s * (len(path) - 1)
-    k = min(int(x), len(path) - 2)
-    u = x - k
-    return np.asarray((1.0 - u) * path[k] + u * path[k + 1], dtype=np.float64)
-
-
-def line_ik(ur5: UR5, T_start: FloatArray, T_end: FloatArray, q_start: FloatArray, n: int) -> FloatArray | None:
-    """Joint positions (n, 6) [rad] at ``n`` evenly spaced flange poses on the straight line from ``T_start``
-    to ``T_end`` (same orientation assumed: the orientation of ``T_end`` is used), each IK seeded by the
-    previous solution, starting from ``q_start`` (the solution at ``T_start``). None if a point is unreachable
-    or the arm would jump between IK branches (> 0.5 rad in a joint between neighbours)."""
-    out = [np.asarray(q_start, dtype=np.float64)]
-    q = out[0]
-    for k in range(1, n):
-        s = k / (n - 1)
-        T = T_end.copy()
-        T[:3, 3] = (1.0 - s) * T_start[:3, 3] + s * T_end[:3, 3]
-        ik = ur5.solve_ik(T, q, seeds=0, analytic=False)
-        if not ik.success or float(np.max(np.abs(ik.q - q))) > 0.5:
-            return None
-        q = ik.q
-        out.append(q)
-    return np.array(out)
 
 
 SETTLE_DROP = 0.001
@@ -360,30 +328,13 @@ def simulate(
     ) -> bool:
         return run.phase(duration, arm, hand, grasping, frame)
 
-    ok = phase(cfg.approach_time, lambda t: _interp(approach, _quintic(t / cfg.approach_time)), open_hand, False)
+    ok = phase(cfg.approach_time, lambda t: interp(approach, quintic(t / cfg.approach_time)), open_hand, False)
     if ok:
         run.settled()
     ok = ok and phase(closure.duration + closure.settle, lambda _t: q_grasp, ramp, False)
     if ok:
         run.out.touching_after_close = scene.contact_summary(data).object_hand
-    ok = ok and phase(cfg.lift_time, lambda t: _interp(lift, _quintic(t / cfg.lift_time)), closed_hand, True)
+    ok = ok and phase(cfg.lift_time, lambda t: interp(lift, quintic(t / cfg.lift_time)), closed_hand, True)
     p_hold = scene.object_in_flange(data)  # the object in the hand frame at the start of the hold
     ok = ok and (cfg.hold_time <= 0.0 or phase(cfg.hold_time, lambda _t: q_top, closed_hand, True))
     return run.finish(ok, p_hold)
-
-
-def arm_paths(
-    ur5: UR5, T_pre: FloatArray, T_grasp: FloatArray, q_pre: FloatArray, cfg: RolloutConfig
-) -> tuple[FloatArray, FloatArray] | str:
-    """Joint paths (waypoints, 6) [rad] of the approach (pre-grasp to grasp flange pose, world frame) and of the
-    lift (``cfg.lift`` [m] straight up from the grasp), or the reason why one is unreachable
-    (``unreachable:approach`` or ``unreachable:lift``)."""
-    approach = line_ik(ur5, T_pre, T_grasp, q_pre, cfg.waypoints)
-    if approach is None:
-        return "unreachable:approach"
-    T_top = np.array(T_grasp, dtype=np.float64)
-    T_top[2, 3] += cfg.lift
-    lift = line_ik(ur5, T_grasp, T_top, approach[-1], cfg.waypoints)
-    if lift is None:
-        return "unreachable:lift"
-    return approach, lift

@@ -26,7 +26,7 @@ from softsig_service.api.deps import Ctx
 from softsig_service.api.plan_schemas import PlanIn, PlanList, PlanOut
 from softsig_service.api.routes.common import problem, read_route, write_route
 from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page_of
-from softsig_service.api.scene import scene_objects, stored_objects
+from softsig_service.api.scene import scene_frames, scene_objects, stored_objects
 from softsig_service.api.schemas import HAND_NAME_PATTERN
 from softsig_service.config import Settings
 from softsig_service.errors import HandNotFound, InvalidInput, NotFound
@@ -144,31 +144,41 @@ _CAPTURES_LOCK = threading.Lock()
 
 PLANNER_FIELDS = (
     "strategy", "sigma_r", "sigma_t", "current_q", "closing_axis", "approach_distance", "margin", "cs_method",
-    "cs_criterion", "placement",
+    "cs_criterion", "placement", "candidates",
 )  # fmt: skip
 """The fields of a plan request (``PlanIn``) that reach the planner (``PlanRequest``) as they are, by the same
 name. The others are resolved by the route first: ``hand`` (the registry's manifest and revision), ``object`` (parsed
 over ``table`` in the ``frames`` given),
 ``capture_version`` (the capture model), or are the route's own (``store``); ``tests/api/test_api_contract.py``
 keeps the two lists complete and apart."""
-ROUTE_FIELDS = ("hand", "object", "capture_version", "store", "frames", "table", "obstacles")
+ROUTE_FIELDS = ("hand", "object", "capture_version", "store", "frames", "table", "obstacles", "output_frame")
 """The fields of ``PlanIn`` the route resolves or keeps for itself (see :data:`PLANNER_FIELDS`)."""
 
 
 def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRef) -> dict[str, Any]:
     """Plan ``body`` for the registered ``hand`` with the app's planner and store it (unless ``store`` is false);
     the plan JSON."""
+    from softsig_service.objects.frames import output_frame_pose
     from softsig_service.planning.request import PlanRequest
 
     obj, obstacles = scene_objects(body.object, body.obstacles, body, stored_objects(ctx))
-    capture = capture_model(ctx, hand, obj, body.capture_version) if body.strategy == "R" else None
+    frame = output_frame_pose(body.output_frame, scene_frames(body), obj.pose)
+    if body.strategy == "R":
+        capture: CaptureModel | None = capture_model(ctx, hand, obj, body.capture_version)
+    else:  # the grasps' quality: the hand's capture model of the object where it has one
+        try:
+            capture = capture_model(ctx, hand, obj, body.capture_version)
+        except InvalidInput:
+            if body.capture_version is not None:
+                raise
+            capture = None
     options = body.model_dump(include=set(PLANNER_FIELDS))
     request = PlanRequest(
         hand=hand.manifest_path, obj=obj, capture=capture, hand_revision=hand.token, obstacles=obstacles, **options
     )
     plan = ctx.planner.plan(request)  # thread-safe: per-thread solvers and collision worlds, no lock
     ctx.metrics.plan_seconds.labels(body.strategy).observe(plan.timing.get("total", 0.0))
-    data: dict[str, Any] = vectors_as_objects(to_jsonable(plan.to_json_dict()))
+    data: dict[str, Any] = vectors_as_objects(to_jsonable(plan.to_json_dict(body.output_frame, frame)))
     data["hand_revision"] = hand.revision
     if body.store:
         rec = repo.add_plan(
