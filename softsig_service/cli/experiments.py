@@ -201,6 +201,28 @@ def validate(
 experiment_app = typer.Typer(help="Reference experiments (the paper's Table I).", no_args_is_help=True)
 
 
+@experiment_app.command("ranking")
+def ranking(
+    out: Annotated[Path, typer.Option("--out", help="output folder")],
+    trials: Annotated[int, typer.Option("--trials", help="trials per grasp", min=1, max=10_000)] = 30,
+    k: Annotated[int, typer.Option("--k", help="ranked grasps per plan", min=2, max=12)] = 6,
+    hands: Annotated[str, typer.Option("--hands", help="comma-separated hands")] = "pisa_iit_softhand,rbo_hand2",
+    condition: Annotated[int, typer.Option("--condition", help="Table I condition index (noise)", min=0, max=2)] = 1,
+    seed: Annotated[int, typer.Option("--seed", min=0)] = 0,
+    workers: Annotated[int, typer.Option("--workers", min=1, max=64, help="processes")] = 1,
+) -> None:
+    """Validate every rank of the ranked grasps (success per rank, rank 1 vs rank k) and the calibration of
+    grasp_quality (docs/planning.md); writes ranking.{json,md,png}."""
+    with _errors():
+        from softsig_service.experiments.ranking import report, run_ranking
+
+        summary = run_ranking(out, hands=tuple(h.strip() for h in hands.split(",") if h.strip()), k=k, trials=trials,
+                              condition=condition, seed=seed, workers=workers)  # fmt: skip
+        typer.echo(report(summary))
+        typer.echo(f"{summary['wall_time']:.0f} s; wrote {out / 'ranking.md'}, {out / 'ranking.json'}, "
+                   f"{out / 'ranking.png'}")  # fmt: skip
+
+
 @experiment_app.command("partial-view")
 def partial_view(
     out: Annotated[Path, typer.Option("--out", help="output folder")],

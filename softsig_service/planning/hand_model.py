@@ -23,8 +23,10 @@ from softsig_service.hands.model import load_hand
 from softsig_service.signatures.closure import compute_closure_signature
 from softsig_service.signatures.closure_types import ClosureSignature, Criterion
 
-Placement = Literal["open_centre", "grasp_centre", "previous"]
-PLACEMENTS: tuple[Placement, ...] = ("open_centre", "grasp_centre", "previous")
+Placement = Literal["open_centre", "grasp_centre", "per_strategy", "previous"]
+PLACEMENTS: tuple[Placement, ...] = ("open_centre", "grasp_centre", "per_strategy", "previous")
+DEPRECATED_PLACEMENTS: dict[str, Placement] = {"previous": "per_strategy"}
+"""Old placement names still accepted (for one version), and what they are now called."""
 """Which hand point goes over the object's centre: c_0 of the open hand (both strategies, the default), c_T of
 the closed hand (both strategies), or the previous rule (S: the open reference points' bounding-box centre;
 C: the CS anchor)."""
@@ -43,7 +45,7 @@ class HandPlanningModel:
     """(N, 3) [m] open-hand reference points, hand frame."""
     shapes: tuple[HandShape, ...]
     bbox_center: NDArray[np.float64]
-    """[m] centre of the open reference points' bounding box, hand frame (strategy S, ``placement="previous"``)."""
+    """[m] centre of the open reference points' bounding box, hand frame (strategy S, ``placement="per_strategy"``)."""
     open_centre: NDArray[np.float64]
     """[m] centre c_0 of the open hand's reference-point ellipsoid (MVEE), hand frame."""
     grasp_centre: NDArray[np.float64]

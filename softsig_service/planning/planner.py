@@ -10,7 +10,7 @@ points hand +z (the approach) down. The planner:
    (``placement="open_centre"``) the centre c_0 of the open hand's reference-point ellipsoid (the ellipsoid
    CS's anchor); ``placement="grasp_centre"`` the centre c_T of the closed hand's reference-point ellipsoid
    (docs/design.md §6's grasp centre; for the SoftHand it lies under the palm, where a top grasp cannot wrap an
-   object: docs/experiment_table1.md); ``placement="previous"`` keeps the earlier per-strategy rule (S: centre
+   object: docs/experiment_table1.md); ``placement="per_strategy"`` keeps the earlier per-strategy rule (S: centre
    of the open reference points' bounding box, C: the CS anchor) for ablations;
 2. descends from high above along the approach until the open hand comes within ``margin`` of the table or the
    object (the grasp pose), and raises the pre-grasp ``approach_distance`` back along the approach;
@@ -84,7 +84,8 @@ class _Candidate:
     T_pre: NDArray[np.float64] | None = None
     ik_residual: float | None = None
     clearance: float | None = None
-    distance: float = math.inf
+    joint_distance: float = math.inf
+    """[rad] the grasp configuration's Euclidean distance from the current one in joint space."""
     approach_clear: bool = False
     """The descent showed the hand clear of table and object all along the approach (see ``Planner._place``)."""
     primary: bool = True
@@ -216,7 +217,7 @@ class Planner:
                 if not c.reasons:
                     self._solve_grasp(c, q_now)
                 t_ik += time.perf_counter() - t2
-            for c in sorted((c for c in group if not c.reasons), key=lambda c: c.distance):
+            for c in sorted((c for c in group if not c.reasons), key=lambda c: c.joint_distance):
                 if any(_same_grasp(c, r) for r in ranked):
                     continue
                 dt_ik, dt_col = self._finish(c, req, world)
@@ -365,7 +366,7 @@ class Planner:
         c.q = ik.q
         c.ik_residual = ik.position_residual
         dq = ik.q - q_now
-        c.distance = math.sqrt(float(dq @ dq))
+        c.joint_distance = math.sqrt(float(dq @ dq))
 
     def _paths(self, c: _Candidate) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
         """The pre-grasp IK (seeded by the grasp's) and the joint paths of the approach (pre-grasp to grasp) and the

@@ -21,7 +21,7 @@ from softsig_service.geometry.quaternions import rotation_to_quat
 from softsig_service.geometry.transforms import pose_wire
 from softsig_service.objects import TableObject
 from softsig_service.objects.schema import MAX_OBSTACLES, WORLD_FRAME
-from softsig_service.planning.hand_model import DEFAULT_PLACEMENT, PLACEMENTS, Placement
+from softsig_service.planning.hand_model import DEFAULT_PLACEMENT, DEPRECATED_PLACEMENTS, PLACEMENTS, Placement
 from softsig_service.planning.strategies import STRATEGIES
 from softsig_service.signatures.capture import CaptureModel
 from softsig_service.signatures.closure_types import CRITERIA, Criterion
@@ -92,6 +92,7 @@ class PlanRequest:
             object.__setattr__(self, "relative_pose", tuple(float(x) for x in rel))
         if self.placement not in PLACEMENTS:
             raise InvalidInput("unknown placement", field="placement", value=self.placement, choices=PLACEMENTS)
+        object.__setattr__(self, "placement", DEPRECATED_PLACEMENTS.get(self.placement, self.placement))
         if self.cs_criterion not in CRITERIA:
             raise InvalidInput("unknown criterion", field="cs_criterion", value=self.cs_criterion, choices=CRITERIA)
         if self.current_q is not None:

@@ -38,7 +38,7 @@ def strategy_s_poses(
     ``HandPlanningModel.placement_point("S", PlanRequest.placement)``: by default (``placement="open_centre"``)
     the centre c_0 of the open hand's reference-point ellipsoid; with ``"grasp_centre"`` the centre c_T of the
     closed hand's reference-point ellipsoid (strategy C puts the same point there, so S and C differ only in
-    yaw); with ``"previous"`` the centre of the open reference points' bounding box. The flange height is left
+    yaw); with ``"per_strategy"`` the centre of the open reference points' bounding box. The flange height is left
     at the object's centre height (the planner sets it by descending along the approach). Both yaws (the axis
     has no sign) are returned.
     """

@@ -6,10 +6,10 @@ orientation is ``R = Rz(yaw) · Rx(pi + roll) · Ry(pitch)``: with roll = pitch 
 grasp) and hand +x keeps its heading ``yaw``.
 
 The hand point put over the object's centre is the *placement point* ``p_a`` [m, hand frame], passed as
-``cs_anchor``. The planner (:mod:`softsig_service.planning.planner`) passes
+``placement_point``. The planner (:mod:`softsig_service.planning.planner`) passes
 ``HandPlanningModel.placement_point("C", PlanRequest.placement)``: by default (``placement="open_centre"``) the
 centre c_0 of the open hand's reference-point ellipsoid (MVEE; the ellipsoid CS's anchor, whatever CS method is
-used); with ``"grasp_centre"`` the centre c_T of the closed hand's reference-point ellipsoid; with ``"previous"``
+used); with ``"grasp_centre"`` the centre c_T of the closed hand's reference-point ellipsoid; with ``"per_strategy"``
 the CS's own anchor (c_0 for the ellipsoid method; the centroid of the open reference points for pca, of the
 open hand's surface points for mesh). With ``"open_centre"`` and ``"grasp_centre"`` strategy S puts the same
 point there (docs/design.md §6).
@@ -206,7 +206,7 @@ def _satisfies(g: NDArray[np.float64], n: int, slack: float = 0.0) -> bool:
 
 def solve_wrist_pose(
     cs_axis: NDArray[np.float64],
-    cs_anchor: NDArray[np.float64],
+    placement_point: NDArray[np.float64],
     points_open: NDArray[np.float64],
     object_center: NDArray[np.float64],
     closing_axis: NDArray[np.float64],
@@ -216,19 +216,19 @@ def solve_wrist_pose(
 ) -> list[WristPoseSolution]:
     """Solve strategy C for both yaw branches of the CS axis; return the two solutions (best first).
 
-    ``cs_axis`` (unit) and ``cs_anchor`` [m] and ``points_open`` (N, 3) [m] are in the hand frame;
+    ``cs_axis`` (unit) and ``placement_point`` [m] and ``points_open`` (N, 3) [m] are in the hand frame;
     ``object_center`` [m] and the horizontal ``closing_axis`` (2 or 3 components, unit after projection) are in
-    the world frame. Despite its name, ``cs_anchor`` is the placement point p_a that is put over
+    the world frame. ``placement_point`` is the placement point p_a that is put over
     ``object_center``, not necessarily the CS's anchor: the planner passes
     ``HandPlanningModel.placement_point("C", placement)`` (default c_0, the open hand's reference-point
     ellipsoid centre; see the module docstring).
     """
     u = np.asarray(cs_axis, dtype=float).reshape(3)
-    pa = np.asarray(cs_anchor, dtype=float).reshape(3)
+    pa = np.asarray(placement_point, dtype=float).reshape(3)
     P = np.asarray(points_open, dtype=float).reshape(-1, 3)
     c = np.asarray(object_center, dtype=float).reshape(3)
     a = np.asarray(closing_axis, dtype=float).ravel()[:2]
-    for name, arr in (("cs_axis", u), ("cs_anchor", pa), ("points_open", P), ("object_center", c),
+    for name, arr in (("cs_axis", u), ("placement_point", pa), ("points_open", P), ("object_center", c),
                       ("closing_axis", a)):  # fmt: skip
         if not np.all(np.isfinite(arr)):
             raise InvalidInput("values must be finite", field=name)

@@ -178,3 +178,10 @@ def test_candidates_out_of_range_are_refused() -> None:
         with pytest.raises(InvalidInput) as err:
             PlanRequest(hand="pisa_iit_softhand", obj=BOX, strategy="C", candidates=bad)  # type: ignore[arg-type]
         assert err.value.field == "candidates"
+
+
+def test_the_old_placement_name_is_the_new_one() -> None:
+    old = _plan(strategy="S", placement="previous")
+    new = _plan(strategy="S", placement="per_strategy")
+    assert old.solver["placement"] == new.solver["placement"] == "per_strategy"  # type: ignore[attr-defined]
+    assert np.array_equal(old.grasp_pose, new.grasp_pose)  # type: ignore[attr-defined]
