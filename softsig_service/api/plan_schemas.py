@@ -179,8 +179,10 @@ class RankedGrasp(Out):
     quality_model: Literal["capture", "geometric"] = Field(
         description="capture: the hand's capture model of the object; geometric: the stated geometric model"
     )
-    grasp_pose: PoseOut
-    pre_grasp_pose: PoseOut
+    grasp_pose: PoseOut = Field(description="the flange (tool0) at the grasp")
+    pre_grasp_pose: PoseOut = Field(description="the flange (tool0) at the pre-grasp")
+    grasp_frame_pose: PoseOut = Field(description="the hand's grasp frame at the grasp (the flange's unless the hand "
+                                      "states a grasp_frame)")  # fmt: skip
     joint_positions: list[float] = Field(description="UR5 joints at the grasp [rad]")
     pre_grasp_joint_positions: list[float] = Field(description="UR5 joints at the pre-grasp [rad]")
     clearance: float | None = Field(None, description="[m] from the open hand to table and object at the grasp")
@@ -256,8 +258,11 @@ class PlanOut(Out):
     joint_names: list[str] = Field(description="the UR5's joints, in the order of the joint positions")
     joint_positions: list[float] | None = Field(None, description="UR5 joints at the grasp [rad]")
     pre_grasp_joint_positions: list[float] | None = Field(None, description="UR5 joints at the pre-grasp [rad]")
-    grasp_pose: PoseOut | None = None
-    pre_grasp_pose: PoseOut | None = None
+    grasp_pose: PoseOut | None = Field(None, description="the flange (tool0) at the grasp")
+    pre_grasp_pose: PoseOut | None = Field(None, description="the flange (tool0) at the pre-grasp")
+    grasp_frame_pose: PoseOut | None = Field(
+        None, description="the hand's grasp frame at the grasp (the flange's unless the hand states a grasp_frame)"
+    )
     approach: Approach
     quality: Quality
     timing: Timing

@@ -53,11 +53,12 @@ def signature_closure(
 
             traj = load_markers(markers)
         else:
-            from softsig_service.hands.closure import simulate_closure
+            from softsig_service.hands.closure import in_grasp_frame, simulate_closure
             from softsig_service.hands.model import load_hand
 
             assert hand is not None
-            traj = simulate_closure(load_hand(hand, Settings()), surface_points=None if method == "mesh" else 0)
+            the_hand = load_hand(hand, Settings())
+            traj = in_grasp_frame(the_hand, simulate_closure(the_hand, surface_points=None if method == "mesh" else 0))
         cs = compute_closure_signature(traj, method, criterion=the_criterion)
         if plot is not None:
             from softsig_service.experiments.closure_plot import plot_closure_signature

@@ -100,7 +100,7 @@ def simulate_relative_yaw(
     out: list[CaptureSample] = []
     if not plan.success or plan.grasp_pose is None:
         return [(theta, u, v, False) for u, v in offsets]
-    R = np.asarray(plan.grasp_pose)[:3, :3]
+    R = np.asarray(plan.grasp_frame_pose if plan.grasp_frame_pose is not None else plan.grasp_pose)[:3, :3]
     for u, v in offsets:
         shift = u * R[:, 0] + v * R[:, 1]
         pert = Perturbation(d_yaw=0.0, dx=float(shift[0]), dy=float(shift[1]))

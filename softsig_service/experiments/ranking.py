@@ -85,13 +85,15 @@ def _run(task: _Task) -> dict[str, Any] | None:
     g = plan.grasps[task.rank - 1]
     single = dataclasses.replace(
         plan, grasp_pose=g["grasp_pose"], pre_grasp_pose=g["pre_grasp_pose"], joint_positions=g["joint_positions"],
-        pre_grasp_joint_positions=g["pre_grasp_joint_positions"], grasps=[g],
+        pre_grasp_joint_positions=g["pre_grasp_joint_positions"], grasp_frame_pose=g["grasp_frame_pose"], grasps=[g],
     )  # fmt: skip
     obj = builtin_object(task.object)
     result = run_trial(task.hand, obj, task.strategy, seed=task.seed, sigma_r=sigma_r, sigma_t=sigma_t,  # type: ignore[arg-type]
                        plan=single)  # fmt: skip
     model = planning_model(task.hand, "ellipsoid")
-    geometric = geometric_quality(g["grasp_pose"], model.signature.axis, model.placement_point("R", "open_centre"), obj)
+    geometric = geometric_quality(
+        g["grasp_frame_pose"], model.signature.axis, model.placement_point("R", "open_centre"), obj
+    )
     return {"hand": task.hand, "object": task.object, "strategy": task.strategy, "rank": task.rank,
             "trial": task.trial, "seed": task.seed, "quality": g["grasp_quality"], "quality_model": g["quality_model"],
             "geometric_quality": geometric, "label": g["label"], "success": result.success,

@@ -10,6 +10,7 @@ from softsig_service.hands.assets import (
 )
 from softsig_service.hands.closure import (
     closure_command,
+    in_grasp_frame,
     prepare_data,
     reference_points_world,
     run_closure,
@@ -90,6 +91,7 @@ __all__ = [
     "hand_info",
     "hand_spec",
     "hand_surface_samples",
+    "in_grasp_frame",
     "is_archive",
     "load_hand",
     "load_manifest",

@@ -8,6 +8,7 @@ then held for ``settle`` [s]. Reference points (and optionally dense surface poi
 from __future__ import annotations
 
 import copy
+import dataclasses
 from collections.abc import Callable
 
 import mujoco
@@ -35,6 +36,17 @@ def to_hand_frame(hand: HandModel, data: mujoco.MjData, points: NDArray[np.float
     """Express world points (..., 3) [m] in the hand (mount) frame."""
     R = data.xmat[hand.mount_body].reshape(3, 3)
     return (points - data.xpos[hand.mount_body]) @ R
+
+
+def in_grasp_frame(hand: HandModel, traj: ClosureTrajectory) -> ClosureTrajectory:
+    """``traj`` (reference points in the hand frame [m]) expressed in the hand's grasp frame (the manifest's
+    ``grasp_frame``, ``T_HG``): the frame plans and closure signatures use. The same trajectory when they coincide."""
+    T = hand.grasp_frame
+    if np.array_equal(T, np.eye(4)):
+        return traj
+    R, t = T[:3, :3], T[:3, 3]
+    surface = None if traj.surface is None else (traj.surface - t) @ R
+    return dataclasses.replace(traj, positions=(traj.positions - t) @ R, surface=surface, frame_id="grasp")
 
 
 def closure_command(hand: HandModel, t: float, duration: float) -> NDArray[np.float64]:

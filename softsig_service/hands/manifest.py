@@ -2,7 +2,9 @@
 
 A manifest names the model file (MJCF, URDF or a ``.urdf.xacro`` with its ``xacro_args``, relative to the
 manifest's folder), the mount body and optionally the hand frame's pose in it (``mount_pose``; without it the
-mount body's frame is the hand frame; docs/design.md §3: origin at the flange, +z = approach, +x across the palm), the
+mount body's frame is the hand frame, which sits at the UR5 flange ``tool0``; docs/design.md §3), optionally the
+grasp frame's pose in the hand frame (``grasp_frame``: +z the approach out of the palm, +x across it; without it the
+hand frame is the grasp frame), the
 reference points tracked through a closure, the closure command and the simulation settings. Every bad value raises
 :class:`~softsig_service.errors.InvalidManifest` naming the field (a dotted path) and, where they are a closed
 set, the valid choices.
@@ -185,6 +187,12 @@ class HandManifest(_Strict):
     scene: str | None = None
     mount: str = Field(min_length=1, description="body the hand frame is fixed to (mounted at UR5 tool0)")
     mount_pose: MountPose | None = None
+    grasp_frame: MountPose | None = Field(
+        None,
+        description="the grasp frame's pose in the hand (flange) frame: +z the approach out of the palm, +x across "
+        "it; default: the hand frame itself. Plans and closure signatures are in the grasp frame, the arm's IK at "
+        "the flange",
+    )
     xacro_args: dict[str, str | bool | int | float] = Field(default_factory=dict)
     reference_points: list[ReferencePoint] | None = None
     closure: Closure

@@ -76,6 +76,8 @@ class HandModel:
     """For posture and synergy closures: (qpos address, open value) set before the closure starts."""
     hand_frame: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
     """``T_MH`` (4x4): the hand frame in the description's mount-body frame (``mount_pose``; [m])."""
+    grasp_frame: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
+    """``T_HG`` (4x4): the grasp frame in the hand (= flange) frame (``grasp_frame``; [m])."""
     mimics: tuple[Coupling, ...] = ()
     """The URDF's mimic couplings, resolved to their root joints."""
     synergy: tuple[Coupling, ...] = ()
@@ -278,6 +280,7 @@ def _build_hand(
         closure_closed=closed_ctrl,
         posture_qpos=posture,
         hand_frame=T_MH,
+        grasp_frame=mount_transform(manifest.grasp_frame),
         mimics=tuple(mimics.values()),
         synergy=tuple(coupled),
         expanded=src.expanded,

@@ -6,9 +6,10 @@ Frames and units: the hand frame (= the UR5 flange ``tool0``); lengths in [m].
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -17,7 +18,7 @@ from numpy.typing import NDArray
 from softsig_service.arm.shapes import HandShape
 from softsig_service.config import Settings
 from softsig_service.geometry.ellipsoid import mvee
-from softsig_service.hands.closure import simulate_closure
+from softsig_service.hands.closure import in_grasp_frame, simulate_closure
 from softsig_service.hands.collision_shapes import hand_collision_shapes
 from softsig_service.hands.model import load_hand
 from softsig_service.signatures.closure import compute_closure_signature
@@ -35,7 +36,8 @@ DEFAULT_PLACEMENT: Placement = "open_centre"
 
 @dataclass(frozen=True, eq=False)
 class HandPlanningModel:
-    """What the planner needs of a hand, computed once: its CS, open reference points and collision shapes.
+    """What the planner needs of a hand, computed once: its CS, open reference points and collision shapes, in the
+    grasp frame (the hand frame unless the manifest gives a ``grasp_frame``), and where that frame is on the flange.
 
     Compared and hashed by identity: the planner keys the geometry it derives from a model by the model itself."""
 
@@ -44,6 +46,7 @@ class HandPlanningModel:
     points_open: NDArray[np.float64]
     """(N, 3) [m] open-hand reference points, hand frame."""
     shapes: tuple[HandShape, ...]
+    """The open hand's collision primitives posed in the grasp frame (the descent's clearance)."""
     bbox_center: NDArray[np.float64]
     """[m] centre of the open reference points' bounding box, hand frame (strategy S, ``placement="per_strategy"``)."""
     open_centre: NDArray[np.float64]
@@ -51,6 +54,14 @@ class HandPlanningModel:
     grasp_centre: NDArray[np.float64]
     """[m] centre c_T of the closed hand's reference-point ellipsoid (MVEE), hand frame: where the hand closes to."""
     closure: dict[str, Any]
+    flange_shapes: tuple[HandShape, ...] = ()
+    """The same primitives posed in the hand (= flange, ``tool0``) frame: the arm's collision world."""
+    grasp_in_flange: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
+    """``T_HG`` (4x4): the grasp frame in the flange frame (the manifest's ``grasp_frame``)."""
+
+    def flange_pose(self, T_world_grasp: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The flange pose ``T_world_tool0`` (4x4) that puts the grasp frame at ``T_world_grasp``."""
+        return np.asarray(T_world_grasp @ np.linalg.inv(self.grasp_in_flange), dtype=np.float64)
 
     def placement_point(self, strategy: str, placement: Placement) -> NDArray[np.float64]:
         """The hand-frame point [m] the planner puts over the object's centre for ``strategy`` and ``placement``."""
@@ -128,8 +139,11 @@ def build_planning_model(
     """Simulate the hand's closure once and derive its planning data (no cache; the service runs this in its
     compute pool, with its time limit, and hands the result to :func:`remember_planning_model`)."""
     hand = load_hand(hand_ref, settings)
-    traj = simulate_closure(hand, surface_points=800 if method == "mesh" else 0)
+    traj = in_grasp_frame(hand, simulate_closure(hand, surface_points=800 if method == "mesh" else 0))
     cs = compute_closure_signature(traj, method, criterion=criterion)  # type: ignore[arg-type]
+    T_HG = np.asarray(hand.grasp_frame, dtype=np.float64)
+    T_GH = np.linalg.inv(T_HG)
+    flange_shapes = tuple(hand_collision_shapes(hand))  # posed in the hand (= flange) frame
     P = traj.positions[0]
     closure = {
         "actuators": [hand.model.actuator(a).name for a in hand.closure_actuators],
@@ -141,7 +155,9 @@ def build_planning_model(
         name=hand.name,
         signature=cs,
         points_open=P,
-        shapes=tuple(hand_collision_shapes(hand)),
+        shapes=tuple(dataclasses.replace(sh, pose_in_hand=T_GH @ sh.pose_in_hand) for sh in flange_shapes),
+        flange_shapes=flange_shapes,
+        grasp_in_flange=T_HG,
         bbox_center=(P.min(axis=0) + P.max(axis=0)) / 2,
         open_centre=mvee(P).center,
         grasp_centre=mvee(traj.positions[-1]).center,

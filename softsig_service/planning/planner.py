@@ -96,6 +96,20 @@ class _Candidate:
     approach_path: NDArray[np.float64] | None = None
     """Joint paths (waypoints, 6) [rad] of the approach and the lift (:mod:`softsig_service.arm.trajectory`)."""
     lift_path: NDArray[np.float64] | None = None
+    grasp_in_flange: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
+    """``T_HG``: the hand's grasp frame in the flange frame. ``T`` and ``T_pre`` are grasp-frame poses; the arm's
+    IK and the paths use :attr:`flange` and :attr:`flange_pre`."""
+
+    @property
+    def flange(self) -> NDArray[np.float64]:
+        """The flange pose (4x4, world) of the grasp-frame pose ``T``."""
+        return np.asarray(self.T @ np.linalg.inv(self.grasp_in_flange), dtype=np.float64)
+
+    @property
+    def flange_pre(self) -> NDArray[np.float64]:
+        """The flange pose (4x4, world) of the pre-grasp ``T_pre``."""
+        assert self.T_pre is not None
+        return np.asarray(self.T_pre @ np.linalg.inv(self.grasp_in_flange), dtype=np.float64)
 
 
 class Planner:
@@ -131,7 +145,7 @@ class Planner:
         key = round(table_height, 6)
         world = by_height.pop(key, None)
         if world is None:
-            world = CollisionWorld(self.ur5, model.shapes, table_height=table_height)
+            world = CollisionWorld(self.ur5, model.flange_shapes or model.shapes, table_height=table_height)
             while len(by_height) >= WORLDS_PER_MODEL:
                 del by_height[next(iter(by_height))]
         by_height[key] = world  # re-inserted: the dict's order is the order of use
@@ -186,6 +200,8 @@ class Planner:
             c.label = f"{req.strategy}:branch={i}"
         if req.candidates > 1 and req.relative_pose is None:
             candidates += self._alternatives(req, model, hand_point, closing_theta(req, model, theta_r))
+        for c in candidates:
+            c.grasp_in_flange = model.grasp_in_flange
         t_strategy = time.perf_counter() - t0
 
         t_ik = t_col = 0.0
@@ -247,8 +263,9 @@ class Planner:
             joint_names=list(self.ur5.joint_names),
             joint_positions=best.q.tolist() if ok and best.q is not None else None,
             pre_grasp_joint_positions=best.q_pre.tolist() if ok and best.q_pre is not None else None,
-            grasp_pose=best.T,
-            pre_grasp_pose=best.T_pre,
+            grasp_pose=best.flange,
+            pre_grasp_pose=best.flange_pre if best.T_pre is not None else None,
+            grasp_frame_pose=best.T,
             approach={
                 "direction": approach_dir.tolist(),
                 "frame_id": "base_link",
@@ -325,7 +342,8 @@ class Planner:
         """
         model = planning_model(req.hand, req.cs_method, self.settings, req.cs_criterion, req.hand_revision)
         q_now = np.asarray(req.current_q or HOME_Q, dtype=float)
-        c = _Candidate(T=np.asarray(T_grasp, dtype=float), status="given", iterations=0)
+        T_g = np.asarray(T_grasp, dtype=float) @ model.grasp_in_flange  # the grasp frame's pose
+        c = _Candidate(T=T_g, status="given", iterations=0, grasp_in_flange=model.grasp_in_flange)
         c.T_pre = c.T.copy()
         c.T_pre[:3, 3] -= c.T[:3, 2] * req.approach_distance
         world = self._world(model, req.obj.table_height)
@@ -359,7 +377,7 @@ class Planner:
         c.approach_clear = descent.travel >= req.approach_distance and req.margin > ik_slack + GJK_SLACK
 
     def _solve_grasp(self, c: _Candidate, q_now: NDArray[np.float64]) -> None:
-        ik = self.ur5.solve_ik_unchecked(c.T, q_now)
+        ik = self.ur5.solve_ik_unchecked(c.flange, q_now)
         if not ik.success:
             c.reasons.append("unreachable")
             return
@@ -374,13 +392,13 @@ class Planner:
         the approach ends on another IK branch than the grasp's solution. The grasp's joints become the approach's
         last point (the configuration the arm arrives in)."""
         assert c.q is not None and c.T_pre is not None
-        pre = self.ur5.solve_ik_unchecked(c.T_pre, c.q)
+        pre = self.ur5.solve_ik_unchecked(c.flange_pre, c.q)
         if not pre.success:
             c.reasons.append("unreachable:pre_grasp")
             return None
         c.q_pre = pre.q
         c.ik_residual = max(c.ik_residual or 0.0, pre.position_residual)
-        paths = arm_paths(self.ur5, c.T_pre, c.T, pre.q)
+        paths = arm_paths(self.ur5, c.flange_pre, c.flange, pre.q)
         if isinstance(paths, str):
             c.reasons.append(paths)
             return None
@@ -445,8 +463,9 @@ def _grasp_json(c: _Candidate, rank: int, ur5: UR5) -> dict[str, object]:
         "primary": c.primary,
         "grasp_quality": c.quality,
         "quality_model": c.quality_model,
-        "grasp_pose": c.T.copy(),
-        "pre_grasp_pose": c.T_pre.copy(),
+        "grasp_pose": c.flange,
+        "pre_grasp_pose": c.flange_pre,
+        "grasp_frame_pose": c.T.copy(),
         "joint_positions": c.q.tolist(),
         "pre_grasp_joint_positions": c.q_pre.tolist(),
         "clearance": c.clearance,

@@ -127,6 +127,9 @@ class GraspPlan:
     closure: dict[str, Any]
     solver: dict[str, Any] = field(default_factory=dict)
     grasps: list[dict[str, Any]] = field(default_factory=list)
+    grasp_frame_pose: NDArray[np.float64] | None = None
+    """The hand's grasp frame at the grasp (4x4, base_link): ``grasp_pose`` (the flange's) times the hand's
+    ``T_HG``; the same pose when the hand frame is its grasp frame."""
     """The feasible grasps, best first (the first is the plan's own): rank, id, grasp_quality and its model,
     flange poses (4x4, base_link) and joint positions [rad] (:func:`~softsig_service.planning.planner.Planner.plan`)."""
 
@@ -168,11 +171,12 @@ class GraspPlan:
             }
             message = moveit_grasp(
                 grasp_id, out(g["grasp_pose"]), frame_id, g["grasp_quality"], self.closure,
-                turned(g["grasp_pose"][:3, 2]), float(self.approach.get("desired_distance", 0.0)), up,
+                turned(g["grasp_frame_pose"][:3, 2]), float(self.approach.get("desired_distance", 0.0)), up,
                 float(self.approach.get("retreat_distance", 0.0)),
             )  # fmt: skip
             grasps.append({**g, "id": grasp_id, "grasp_pose": pose(g["grasp_pose"]),
-                           "pre_grasp_pose": pose(g["pre_grasp_pose"]), **trajectories,
+                           "pre_grasp_pose": pose(g["pre_grasp_pose"]),
+                           "grasp_frame_pose": pose(g["grasp_frame_pose"]), **trajectories,
                            "moveit_grasp": message})  # fmt: skip
         return {
             "success": self.success,
@@ -185,6 +189,7 @@ class GraspPlan:
             "pre_grasp_joint_positions": self.pre_grasp_joint_positions,
             "grasp_pose": pose(self.grasp_pose),
             "pre_grasp_pose": pose(self.pre_grasp_pose),
+            "grasp_frame_pose": pose(self.grasp_frame_pose if self.grasp_frame_pose is not None else self.grasp_pose),
             "approach": approach,
             "quality": self.quality,
             "timing": self.timing,

@@ -62,7 +62,8 @@ def render_plan_png(
     frame = plan.get("output_frame_pose")
     T_frame = Pose.from_wire(frame).matrix() if frame else np.eye(4)
     if grasp is not None:
-        T = T_frame @ Pose.from_wire(grasp).matrix()
+        T_flange = T_frame @ Pose.from_wire(grasp).matrix()
+        T = T_frame @ Pose.from_wire(plan.get("grasp_frame_pose") or grasp).matrix()  # the hand's points are in it
         Rg, p = T[:3, :3], T[:3, 3]
         cs_axis = cs_anchor = None
         if manifest_path is not None:
@@ -81,7 +82,8 @@ def render_plan_png(
             ax.scatter(pts[:, 0], pts[:, 1], s=18, color="#2d5d9f", zorder=5)
             cs_axis = Rg @ model.signature.axis
             cs_anchor = Rg @ model.signature.anchor + p
-        ax.add_patch(Circle((p[0], p[1]), 0.004, color="black", zorder=6, label="flange (tool0)"))
+        pf = T_flange[:3, 3]
+        ax.add_patch(Circle((pf[0], pf[1]), 0.004, color="black", zorder=6, label="flange (tool0)"))
         L = 0.05
         ax.annotate("", xy=(p[0] + L * Rg[0, 0], p[1] + L * Rg[1, 0]), xytext=(p[0], p[1]),
                     arrowprops={"arrowstyle": "->", "color": "#c0392b", "lw": 2})  # fmt: skip

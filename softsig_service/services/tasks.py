@@ -60,14 +60,15 @@ def inspect_hand(manifest_path: str, limits: ModelLimits) -> dict[str, Any]:
 def closure_signature(
     manifest_path: str, limits: ModelLimits, method: str, criterion: str = "absolute"
 ) -> dict[str, Any]:
-    """Simulate the hand's free closure and compute its closure signature by ``method`` (hand frame);
-    ``criterion`` is the ellipsoid method's ("absolute" [m] or "relative")."""
-    from softsig_service.hands.closure import simulate_closure
+    """Simulate the hand's free closure and compute its closure signature by ``method`` (in the hand's grasp frame,
+    which is the hand frame unless its manifest states a ``grasp_frame``); ``criterion`` is the ellipsoid method's
+    ("absolute" [m] or "relative")."""
+    from softsig_service.hands.closure import in_grasp_frame, simulate_closure
     from softsig_service.hands.summary import closure_summary
     from softsig_service.signatures.closure import compute_closure_signature
 
     hand = _compile(manifest_path, limits)
-    traj = simulate_closure(hand, surface_points=None if method == "mesh" else 0)
+    traj = in_grasp_frame(hand, simulate_closure(hand, surface_points=None if method == "mesh" else 0))
     cs = compute_closure_signature(traj, method, criterion=criterion)  # type: ignore[arg-type]
     return {"signature": to_jsonable(cs.to_json_dict()), "closure": to_jsonable(closure_summary(traj))}
 

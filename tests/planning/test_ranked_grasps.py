@@ -83,7 +83,7 @@ def test_quality_comes_from_the_capture_model_when_there_is_one() -> None:
     point = model.placement_point("R", "open_centre")
     for g in plan.grasps:  # type: ignore[attr-defined]
         assert g["quality_model"] == "capture"
-        theta, u, v = relative_pose_of(g["grasp_pose"], point, BOX)
+        theta, u, v = relative_pose_of(g["grasp_frame_pose"], point, BOX)
         assert g["grasp_quality"] == pytest.approx(float(capture.probability(theta, u, v)), abs=1e-12)
     geometric = _plan(candidates=4)
     assert {g["quality_model"] for g in geometric.grasps} == {"geometric"}  # type: ignore[attr-defined]
