@@ -237,12 +237,20 @@ class SoftsigClient:
         sigma_r: float | None = None,
         sigma_t: float | None = None,
         capture_version: int | None = None,
+        candidates: int = 1,
+        output_frame: str = "base_link",
         **options: Any,
     ) -> PlanOut:
         """Plan a top grasp. Strategy R: ``sigma_r`` [rad] and ``sigma_t`` [m], the standard deviations of the
-        object's yaw and position, and optionally ``capture_version`` (the capture model). ``options``:
-        closing_axis, approach_distance [m], margin [m], cs_method, cs_criterion, placement, store."""
+        object's yaw and position, and optionally ``capture_version`` (the capture model). ``candidates``: how many
+        ranked grasps (``PlanOut.grasps``, best first, each with its moveit_msgs/Grasp); ``output_frame``: the frame
+        of the answer's poses (base_link, base, object or one of ``frames``). ``options``: closing_axis,
+        approach_distance [m], margin [m], cs_method, cs_criterion, placement, store, frames, table, obstacles."""
         body: dict[str, Any] = {"hand": hand, "object": dict(object), "strategy": strategy, **options}
+        if candidates != 1:
+            body["candidates"] = candidates
+        if output_frame != "base_link":
+            body["output_frame"] = output_frame
         if current_q is not None:
             body["current_q"] = list(current_q)
         for name, value in (("sigma_r", sigma_r), ("sigma_t", sigma_t), ("capture_version", capture_version)):

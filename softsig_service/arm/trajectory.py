@@ -12,6 +12,7 @@ the nominal duration, lengthened when the profile would exceed the joints' veloc
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 
@@ -111,23 +112,32 @@ def duration(path: FloatArray, nominal: float, velocity_limit: FloatArray) -> fl
     return max(nominal, t_velocity, t_acceleration)
 
 
+@functools.cache
+def _waypoint_phases(n: int) -> tuple[float, ...]:
+    """The profile's ``tau`` in [0, 1] at which the path parameter reaches each of ``n`` evenly spaced waypoints
+    (``quintic(tau_k) = k / (n - 1)``; bisection to 1e-15, computed once per ``n``)."""
+    out = []
+    for k in range(n):
+        target = k / (n - 1)
+        lo, hi = 0.0, 1.0
+        for _ in range(52):  # s(tau) is increasing
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if quintic(mid) < target else (lo, mid)
+        out.append(0.5 * (lo + hi))
+    out[0], out[-1] = 0.0, 1.0  # exact at the ends
+    return tuple(out)
+
+
 def timed(path: FloatArray, total: float) -> tuple[list[float], FloatArray]:
     """The times [s] at which the profile of duration ``total`` passes the path's waypoints and the joint
     velocities [rad/s] there (the mean of the neighbouring segments' rates; zero at both ends)."""
     n = len(path)
-    times = []
-    for k in range(n):
-        target = k / (n - 1)
-        lo, hi = 0.0, 1.0
-        for _ in range(60):  # s(tau) is increasing: bisection to 1e-18
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if quintic(mid) < target else (lo, mid)
-        times.append(0.5 * (lo + hi) * total)
-    times[0], times[-1] = 0.0, total  # exact at the ends
+    phases = _waypoint_phases(n)
+    times = [tau * total for tau in phases]
     slopes = np.diff(path, axis=0) * (n - 1)  # dq/ds per segment
     velocities = np.zeros_like(path)
     for k in range(1, n - 1):
-        velocities[k] = 0.5 * (slopes[k - 1] + slopes[k]) * quintic_rate(times[k] / total) / total
+        velocities[k] = 0.5 * (slopes[k - 1] + slopes[k]) * quintic_rate(phases[k]) / total
     return times, velocities
 
 

@@ -81,6 +81,10 @@ def test_serve_drive_restart(tmp_path: Path) -> None:
         robust = api.plan(hand="parallel_gripper", object={"kind": "builtin", "name": "box"}, strategy="R",
                           sigma_r=0.1, sigma_t=0.01, store=False)  # fmt: skip
         assert robust.strategy == "R" and robust.quality is not None
+        ranked = api.plan(hand="parallel_gripper", object={"kind": "builtin", "name": "box"}, strategy="S",
+                          candidates=3, output_frame="base", store=False)  # fmt: skip
+        assert len(ranked.grasps) == 3 and ranked.output_frame == "base"
+        assert ranked.grasps[0].moveit_grasp.grasp_pose.header.frame_id == "base"
         with pytest.raises(ApiError) as err:
             api.plan(hand="served_gripper", object={"kind": "builtin", "name": "box"}, strategy="Z")  # type: ignore[arg-type]
         assert err.value.status == 422 and err.value.problem.field == "strategy"
