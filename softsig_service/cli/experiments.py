@@ -182,6 +182,7 @@ def validate(
         for r in results:
             verdict = "success" if r.success else f"FAILED: {r.reason}"
             p = r.perturbation
+            from softsig_service.simulation.diagnosis import summary as diagnosis_summary
             from softsig_service.simulation.rollout import SETTLE_DROP
 
             settled = ""
@@ -191,6 +192,8 @@ def validate(
                 f"  seed {r.seed:>10d}  {verdict:28s} lift {r.lift_height * 1000:6.1f} mm  offset yaw "
                 f"{p.d_yaw:+.3f} rad, x {p.dx * 1000:+.1f} mm, y {p.dy * 1000:+.1f} mm  ({r.wall_time:.2f} s)" + settled
             )
+            if r.diagnosis:
+                lines.append(f"      {diagnosis_summary(r.diagnosis)}")
         if video is not None:
             lines.append(f"  wrote {video}")
         if frames is not None:

@@ -81,6 +81,9 @@ class TrialResult:
     sag: float | None = None
     slip: float | None = None
     settle_drop: float | None = None
+    diagnosis: dict[str, Any] = field(default_factory=dict)
+    """Why the trial ended as it did (:mod:`softsig_service.simulation.diagnosis`): ``phases``, a snapshot at the
+    end of each phase run, and ``released_at`` [s]; empty when nothing was simulated."""
 
     def to_json_dict(self) -> dict[str, Any]:
         """A flat JSON record (units: m, rad, s); the perturbation as ``{"d_yaw", "dx", "dy"}``."""
@@ -221,6 +224,7 @@ def run_trial(
         sag=None if sim.unstable else cfg.lift - sim.rise,
         slip=sim.slip,
         settle_drop=sim.settle_drop,
+        diagnosis={"phases": sim.phases, "released_at": sim.released_at},
         **common,
     )
 

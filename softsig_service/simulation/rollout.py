@@ -64,6 +64,7 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -73,6 +74,7 @@ from softsig_service.arm.trajectory import APPROACH_TIME, LIFT, LIFT_TIME, WAYPO
 from softsig_service.errors import InvalidInput
 from softsig_service.hands.closure import closure_command
 from softsig_service.objects import TableObject
+from softsig_service.simulation.diagnosis import snapshot
 from softsig_service.simulation.scene_model import Scene
 
 FloatArray = NDArray[np.float64]
@@ -190,6 +192,11 @@ class SimOutcome:
     sim_time: float = 0.0
     slip: float | None = None
     settle_drop: float | None = None
+    phases: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    """What the scene showed at the end of each phase run (:func:`softsig_service.simulation.diagnosis.snapshot`)."""
+    released_at: float | None = None
+    """[s] the first moment of the lift or hold at which the object touched no part of the hand, when the closure
+    had ended in contact (None: never)."""
 
 
 def judge(sim: SimOutcome, cfg: RolloutConfig) -> str | None:
@@ -241,6 +248,8 @@ class Run:
             out.arm_collision_time = float(data.time)
         if grasping and contacts.object_hand:
             out.touched_in_lift = True
+        elif grasping and out.touching_after_close and out.released_at is None:
+            out.released_at = float(data.time)
         out.max_rise = max(out.max_rise, float(scene.object_position(data)[2]) - self.z0)
         return True
 
@@ -328,13 +337,22 @@ def simulate(
     ) -> bool:
         return run.phase(duration, arm, hand, grasping, frame)
 
+    def seen(name: str) -> None:
+        run.out.phases.append(snapshot(scene, data, name))
+
     ok = phase(cfg.approach_time, lambda t: interp(approach, quintic(t / cfg.approach_time)), open_hand, False)
     if ok:
         run.settled()
+        seen("approach")
     ok = ok and phase(closure.duration + closure.settle, lambda _t: q_grasp, ramp, False)
     if ok:
         run.out.touching_after_close = scene.contact_summary(data).object_hand
+        seen("closure")
     ok = ok and phase(cfg.lift_time, lambda t: interp(lift, quintic(t / cfg.lift_time)), closed_hand, True)
+    if ok:
+        seen("lift")
     p_hold = scene.object_in_flange(data)  # the object in the hand frame at the start of the hold
     ok = ok and (cfg.hold_time <= 0.0 or phase(cfg.hold_time, lambda _t: q_top, closed_hand, True))
+    if ok and cfg.hold_time > 0.0:
+        seen("hold")
     return run.finish(ok, p_hold)
