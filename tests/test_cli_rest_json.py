@@ -67,3 +67,18 @@ def test_the_cli_and_the_service_write_the_same_plan(tmp_path: Path) -> None:
     assert _differences(rest, _without_timing(cli)) == []
     assert isinstance(cli["approach"]["direction"], dict) and isinstance(cli["grasp_pose"]["position"], dict)
     assert _negative_zeros(cli) == [] and _negative_zeros(served) == []
+
+
+def test_the_cli_draws_the_plan_with_the_service_s_function(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from softsig_service.cli import app
+    from softsig_service.hands.model import resolve_hand_path
+    from softsig_service.services.plan_image import render_plan_png
+
+    image = tmp_path / "plan.png"
+    out = CliRunner().invoke(app, ["plan", "--hand", "parallel_gripper", "--object", "box", "--strategy", "S",
+                                   "--json", "--image", str(image)])  # fmt: skip
+    assert out.exit_code == 0, out.output
+    plan = json.loads(out.output)
+    assert image.read_bytes() == render_plan_png(plan, str(resolve_hand_path("parallel_gripper")))

@@ -58,6 +58,8 @@ class HandPlanningModel:
     """The same primitives posed in the hand (= flange, ``tool0``) frame: the arm's collision world."""
     grasp_in_flange: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
     """``T_HG`` (4x4): the grasp frame in the flange frame (the manifest's ``grasp_frame``)."""
+    point_names: tuple[str, ...] = ()
+    """The reference points' names, in the order of ``points_open``."""
 
     def flange_pose(self, T_world_grasp: NDArray[np.float64]) -> NDArray[np.float64]:
         """The flange pose ``T_world_tool0`` (4x4) that puts the grasp frame at ``T_world_grasp``."""
@@ -158,6 +160,7 @@ def build_planning_model(
         shapes=tuple(dataclasses.replace(sh, pose_in_hand=T_GH @ sh.pose_in_hand) for sh in flange_shapes),
         flange_shapes=flange_shapes,
         grasp_in_flange=T_HG,
+        point_names=tuple(traj.point_names),
         bbox_center=(P.min(axis=0) + P.max(axis=0)) / 2,
         open_centre=mvee(P).center,
         grasp_centre=mvee(traj.positions[-1]).center,

@@ -80,6 +80,8 @@ def render_plan_png(
                     ax.add_patch(Polygon(hull, closed=True, facecolor="#7fa7d9", alpha=0.25, edgecolor="#2d5d9f",
                                          label="open hand (reference points)"))  # fmt: skip
             ax.scatter(pts[:, 0], pts[:, 1], s=18, color="#2d5d9f", zorder=5)
+            for name, (x, y) in zip(model.point_names, pts[:, :2], strict=False):  # the reference points named
+                ax.annotate(name, (x, y), textcoords="offset points", xytext=(3, 3), fontsize=6, color="#2d5d9f")
             cs_axis = Rg @ model.signature.axis
             cs_anchor = Rg @ model.signature.anchor + p
         pf = T_flange[:3, 3]
