@@ -13,7 +13,8 @@ from pydantic import Field
 
 from softsig_service.api.schemas import ClosureCriterion, CsMethod, HandName, JointAngle, Out, PoseOut, Vector3
 from softsig_service.objects.schema import FRAME_PATTERN, MAX_OBSTACLES, WORLD_FRAME, Integer, ObjectSpec, SceneFields
-from softsig_service.planning.request import MAX_CANDIDATES
+from softsig_service.planning.request import MAX_CANDIDATES, MAX_CONE
+from softsig_service.planning.wrist_nlp import DEFAULT_CONE
 
 
 class PlanIn(SceneFields):
@@ -57,6 +58,11 @@ class PlanIn(SceneFields):
     store: bool = Field(
         True, strict=True, description="store the plan (GET /v1/plans/{id}, image.png); false: id is null"
     )
+    approach_cone: float = Field(
+        DEFAULT_CONE, ge=0.0, le=MAX_CONE, strict=True,
+        description="[rad] how far from straight down C may tilt the approach (its NLP over the arm's joints, for a "
+        "tilted object or where no untilted pose passes; 0: straight down only)",
+    )  # fmt: skip
     candidates: Integer = Field(
         1, ge=1, le=MAX_CANDIDATES, strict=True,
         description="how many distinct, fully checked grasps to return in grasps, best first (1: the strategy's)",

@@ -68,6 +68,9 @@ def plan(
     candidates: Annotated[
         int, typer.Option("--candidates", min=1, max=12, help="distinct checked grasps to return, best first")
     ] = 1,
+    approach_cone: Annotated[
+        float, typer.Option("--approach-cone", min=0.0, max=1.0472, help="[rad] C's largest tilt from straight down")
+    ] = 0.5235987755982988,
     output_frame: Annotated[
         str,
         typer.Option("--output-frame", help="frame of the answer's poses: base_link | base (UR controller) | object"),
@@ -84,7 +87,7 @@ def plan(
         request = PlanRequest(
             hand=hand, obj=target, strategy=strategy,  # type: ignore[arg-type]
             current_q=q, closing_axis=closing_axis,  # type: ignore[arg-type]
-            sigma_r=sigma_r, sigma_t=sigma_t, capture=model, candidates=candidates,
+            sigma_r=sigma_r, sigma_t=sigma_t, capture=model, candidates=candidates, approach_cone=approach_cone,
             **plan_option_fields(cs_method, criterion, placement),  # type: ignore[arg-type]
         )  # fmt: skip
         from softsig_service.objects.frames import output_frame_pose

@@ -63,12 +63,17 @@ def ellipsoid(radii: Sequence[float], mass: float, **placement: Unpack[Placement
     return _make("ellipsoid", tuple(radii), mass, placement)
 
 
-def mesh(vertices: ArrayLike, faces: ArrayLike, mass: float, **placement: Unpack[Placement]) -> TableObject:
+def mesh(
+    vertices: ArrayLike, faces: ArrayLike, mass: float, *, own_axes: ArrayLike | None = None,
+    **placement: Unpack[Placement],
+) -> TableObject:  # fmt: skip
     """A triangle mesh (vertices ``(N, 3)`` [m], faces ``(M, 3)`` indices), z up as given; the object frame is
-    re-centred on the vertices' bounding box and the mesh rests on the table."""
+    re-centred on the vertices' bounding box and the mesh rests on the table. ``own_axes``: the major, minor and
+    up axes (3x3, columns, base_link) of an object turned into this mesh."""
     try:
         V = np.asarray(vertices, dtype=np.float64)
         F = np.asarray(faces)
     except (TypeError, ValueError) as exc:
         raise InvalidInput("vertices/faces must be rectangular number arrays", field="object.vertices") from exc
-    return _make("mesh", (), mass, placement, vertices=V, faces=F)
+    axes = None if own_axes is None else np.asarray(own_axes, dtype=np.float64).reshape(3, 3)
+    return _make("mesh", (), mass, placement, vertices=V, faces=F, own_axes=axes)

@@ -146,6 +146,9 @@ class TableObject:
     vertices: FloatArray | None = None
     faces: IntArray | None = None
     name: str = ""
+    own_axes: FloatArray | None = None
+    """For an object given with a full orientation: its own major, minor and up axes in base_link (3x3, columns;
+    unit), before its shape became a mesh with vertical z. None for an object resting upright."""
 
     def __post_init__(self) -> None:
         if self.kind not in OBJECT_KINDS:

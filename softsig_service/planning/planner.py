@@ -54,6 +54,7 @@ from softsig_service.arm.trajectory import (
 )
 from softsig_service.arm.ur5 import HOME_Q, POSITION_TOLERANCE, ROTATION_TOLERANCE, UR5, load_ur5
 from softsig_service.config import Settings
+from softsig_service.objects import TableObject
 from softsig_service.planning.clearance import HandClearance, HandGeometry
 from softsig_service.planning.hand_model import (
     HandPlanningModel,
@@ -63,6 +64,7 @@ from softsig_service.planning.ranking import alternatives, grasp_quality
 from softsig_service.planning.request import GraspPlan, PlanRequest
 from softsig_service.planning.strategies import axis_angle_between_lines, relative_poses, strategy_s_poses
 from softsig_service.planning.strategy_r import c_relative_theta, solve_strategy_r
+from softsig_service.planning.wrist_nlp import solve_joint_wrist
 from softsig_service.planning.wrist_pose import solve_wrist_pose_unchecked
 
 START_HEIGHT = 0.5
@@ -245,6 +247,28 @@ class Planner:
             if len(ranked) == req.candidates:
                 break
 
+        up, closing_3d = _object_axes(obj, req.closing_axis)
+        tilted = float(up[2]) < math.cos(TILTED)
+        impossible = any("alignment_impossible" in c.reasons for c in candidates)
+        if req.strategy == "C" and req.relative_pose is None and (tilted or not ranked) and not impossible:
+            # a tilted object, or no closed-form pose passed: the NLP over the arm's joints (exact reach and
+            # limits, the wrist tilted within the approach cone), its pose checked as every other, first
+            t1 = time.perf_counter()
+            joint = self._joint_candidate(req, model, hand_point, closing_3d, up, clearance, q_now)
+            t_strategy += time.perf_counter() - t1
+            if joint is not None:
+                joint.quality, joint.quality_model = grasp_quality(
+                    joint.T, model.signature.axis, quality_point, obj, req.capture, req.sigma_r, req.sigma_t
+                )
+                candidates.append(joint)
+                if not joint.reasons:
+                    dt_ik, dt_col = self._finish(joint, req, world)
+                    t_ik, t_col = t_ik + dt_ik, t_col + dt_col
+                    if not joint.reasons:
+                        ranked = [joint, *(r for r in ranked if not _same_grasp(r, joint))][: req.candidates]
+            if tilted:
+                closing = closing_3d
+
         feasible = ranked
         best = ranked[0] if ranked else _most_advanced(candidates)
         R = best.T[:3, :3]
@@ -295,6 +319,43 @@ class Planner:
                 "placement": req.placement,
             },
         )
+
+    def _joint_candidate(
+        self,
+        req: PlanRequest,
+        model: HandPlanningModel,
+        hand_point: NDArray[np.float64],
+        closing: NDArray[np.float64],
+        up: NDArray[np.float64],
+        clearance: HandClearance,
+        q_now: NDArray[np.float64],
+    ) -> _Candidate | None:
+        """C's pose from the NLP over the arm's joints (:mod:`softsig_service.planning.wrist_nlp`), placed by the
+        descent and solved by IK from the NLP's joints; None when the NLP finds no aligned, centred pose. Its depth
+        target is the untilted pose's: the descent's stand-off of the placement point before the object's centre."""
+        obj = req.obj
+        theta = c_relative_theta(model.signature.axis, req.closing_axis)
+        vertical = _Candidate(T=relative_poses(obj.center, obj.o1, hand_point, theta, 0.0, 0.0)[0], status="",
+                              iterations=0, grasp_in_flange=model.grasp_in_flange)  # fmt: skip
+        self._place(vertical, clearance, req, obj.center)
+        p = vertical.T[:3, :3] @ hand_point + vertical.T[:3, 3]
+        stand_off = float((obj.center - p) @ vertical.T[:3, 2])
+        sol = solve_joint_wrist(
+            self.ur5, q_now, model.grasp_in_flange, model.signature.axis, hand_point, model.points_open, obj.center,
+            closing, up, obj.table_height, req.margin, cone=req.approach_cone,
+            stand_off=stand_off, approach_distance=req.approach_distance, lift=LIFT,
+        )  # fmt: skip
+        if not sol.success:
+            return None
+        c = _Candidate(T=sol.T_world_grasp, status=f"joint_nlp:{sol.status}", iterations=sol.iterations,
+                       label="C:joint_nlp", grasp_in_flange=model.grasp_in_flange)  # fmt: skip
+        self._place(c, clearance, req, obj.center)
+        if not c.reasons:
+            self._solve_grasp(c, sol.q)
+            if not c.reasons:
+                dq = c.q - q_now  # type: ignore[operator]
+                c.joint_distance = math.sqrt(float(dq @ dq))
+        return c
 
     def _alternatives(
         self, req: PlanRequest, model: HandPlanningModel, hand_point: NDArray[np.float64], thetas: tuple[float, float]
@@ -437,6 +498,19 @@ def closing_theta(req: PlanRequest, model: HandPlanningModel, theta_r: float | N
         return theta_r, theta_r + math.pi / 2
     other = "major" if req.closing_axis == "minor" else "minor"
     return c_relative_theta(model.signature.axis, req.closing_axis), c_relative_theta(model.signature.axis, other)
+
+
+TILTED = 1e-3
+"""[rad] an object whose own up axis is further than this from vertical is planned tilted (strategy C)."""
+
+
+def _object_axes(obj: TableObject, closing_axis: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The object's up axis and its closing axis (the minor or major one) in base_link: its own axes when it was
+    given turned, else world +z and its horizontal axes."""
+    if obj.own_axes is not None:
+        A = obj.own_axes
+        return A[:, 2], A[:, 1] if closing_axis == "minor" else A[:, 0]
+    return np.array([0.0, 0.0, 1.0]), obj.o2 if closing_axis == "minor" else obj.o1
 
 
 SAME_POSITION = 1e-3

@@ -23,9 +23,12 @@ from softsig_service.objects import TableObject
 from softsig_service.objects.schema import MAX_OBSTACLES, WORLD_FRAME
 from softsig_service.planning.hand_model import DEFAULT_PLACEMENT, DEPRECATED_PLACEMENTS, PLACEMENTS, Placement
 from softsig_service.planning.strategies import STRATEGIES
+from softsig_service.planning.wrist_nlp import DEFAULT_CONE
 from softsig_service.signatures.capture import CaptureModel
 from softsig_service.signatures.closure_types import CRITERIA, Criterion
 
+MAX_CONE = math.radians(60.0)
+"""[rad] the widest approach cone a request may ask for."""
 MAX_CANDIDATES = 12
 """Most grasps a plan returns (the alternatives of :mod:`softsig_service.planning.ranking` number 12 at most)."""
 
@@ -59,6 +62,9 @@ class PlanRequest:
     relative_pose: tuple[float, float, float] | None = None
     """Put the hand at this relative pose (theta [rad], u, v [m]; :mod:`softsig_service.signatures.capture`)
     instead of the strategy's choice (diagnostics and the capture model's simulations)."""
+    approach_cone: float = DEFAULT_CONE
+    """[rad] how far from straight down strategy C's NLP over the arm's joints may tilt the approach, when no
+    closed-form pose passes (:mod:`softsig_service.planning.wrist_nlp`; 0: straight down only)."""
     candidates: int = 1
     """How many distinct, fully checked grasps to return, best first (``grasps``; at most :data:`MAX_CANDIDATES`):
     1 is the strategy's grasp alone; more adds the alternatives of :mod:`softsig_service.planning.ranking`."""
@@ -101,10 +107,11 @@ class PlanRequest:
         if self.closing_axis not in ("minor", "major"):
             raise InvalidInput("unknown closing axis", field="closing_axis", value=self.closing_axis,
                                choices=("minor", "major"))  # fmt: skip
-        for name, value, lo, hi in (("approach_distance", self.approach_distance, 0.0, 0.5),
-                                    ("margin", self.margin, 0.0, 0.05)):  # fmt: skip
+        for name, value, lo, hi, unit in (("approach_distance", self.approach_distance, 0.0, 0.5, "m"),
+                                          ("margin", self.margin, 0.0, 0.05, "m"),
+                                          ("approach_cone", self.approach_cone, 0.0, MAX_CONE, "rad")):  # fmt: skip
             if not (math.isfinite(value) and lo <= value <= hi):
-                raise InvalidInput(f"must be within [{lo}, {hi}] m", field=name, value=value)
+                raise InvalidInput(f"must be within [{lo:g}, {hi:g}] {unit}", field=name, value=value)
 
 
 @dataclass(frozen=True)

@@ -144,7 +144,7 @@ _CAPTURES_LOCK = threading.Lock()
 
 PLANNER_FIELDS = (
     "strategy", "sigma_r", "sigma_t", "current_q", "closing_axis", "approach_distance", "margin", "cs_method",
-    "cs_criterion", "placement", "candidates",
+    "cs_criterion", "placement", "candidates", "approach_cone",
 )  # fmt: skip
 """The fields of a plan request (``PlanIn``) that reach the planner (``PlanRequest``) as they are, by the same
 name. The others are resolved by the route first: ``hand`` (the registry's manifest and revision), ``object`` (parsed
