@@ -232,6 +232,11 @@ class ClosureCommand(Out):
     ``closed`` over ``duration`` [s] (units of each actuator: [rad], [m] or a synergy's [0, 1])."""
 
     actuators: list[str]
+    commands: list[str] = Field(
+        default_factory=list,
+        description="what a robot stack commands for each actuator: the joint a posture closure servos, else the "
+        "actuator (the names of moveit_grasp's postures)",
+    )
     open: list[float]
     closed: list[float]
     duration: float

@@ -20,7 +20,7 @@ from softsig_service.config import Settings
 from softsig_service.geometry.ellipsoid import mvee
 from softsig_service.hands.closure import in_grasp_frame, simulate_closure
 from softsig_service.hands.collision_shapes import hand_collision_shapes
-from softsig_service.hands.model import load_hand
+from softsig_service.hands.model import SERVO_PREFIX, load_hand
 from softsig_service.signatures.closure import compute_closure_signature
 from softsig_service.signatures.closure_types import ClosureSignature, Criterion
 
@@ -135,6 +135,19 @@ def planning_model(
     return model
 
 
+def _command_name(hand: Any, actuator: int) -> str:
+    """What a robot stack commands for a closure actuator: the joint a position servo drives (a posture closure's
+    servos are softsig's own), else the actuator itself (a motor or a tendon's force source)."""
+    import mujoco
+
+    model = hand.model
+    if int(model.actuator_trntype[actuator]) == int(mujoco.mjtTrn.mjTRN_JOINT):
+        name = model.actuator(actuator).name
+        if name.startswith(SERVO_PREFIX):
+            return str(model.joint(int(model.actuator_trnid[actuator][0])).name)
+    return str(model.actuator(actuator).name)
+
+
 def build_planning_model(
     hand_ref: str, method: str = "ellipsoid", settings: Settings | None = None, criterion: Criterion = "absolute"
 ) -> HandPlanningModel:
@@ -149,6 +162,7 @@ def build_planning_model(
     P = traj.positions[0]
     closure = {
         "actuators": [hand.model.actuator(a).name for a in hand.closure_actuators],
+        "commands": [_command_name(hand, a) for a in hand.closure_actuators],
         "open": hand.closure_open.tolist(),
         "closed": hand.closure_closed.tolist(),
         "duration": hand.manifest.closure.duration,

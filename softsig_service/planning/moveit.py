@@ -3,8 +3,10 @@ nesting: ``trajectory_msgs/JointTrajectory``, ``geometry_msgs/PoseStamped``, ``m
 with ``geometry_msgs/Vector3Stamped``, ``builtin_interfaces/Duration`` as ``{sec, nanosec}``).
 
 - ``grasp_pose`` is the pose of the link the hand mounts on (the UR5 flange ``tool0``), in the answer's frame.
-- ``pre_grasp_posture`` / ``grasp_posture``: the hand's closure actuators at their open values (at time 0) and
-  at their closed values (at the closure's duration [s]); positions only (the actuators' own units).
+- ``pre_grasp_posture`` / ``grasp_posture``: the hand's closure commands at their open values (at time 0) and at
+  their closed values (at the closure's duration [s]); positions only, in the commands' own units. A command is the
+  joint a posture closure servos (its name in the hand's description), else the closure actuator (a motor or a
+  tendon's force source, e.g. the SoftHand's ``synergy``).
 - ``pre_grasp_approach``: along the approach (the hand's +z) for the plan's approach distance [m], at least half
   of it; ``post_grasp_retreat``: straight up (``base_link`` +z) by the validation's lift, at least half of it;
   ``post_place_retreat``: back along the approach by the approach distance.
@@ -101,7 +103,7 @@ def moveit_grasp(
     command (``actuators``, ``open``, ``closed``, ``duration`` [s])."""
     if not math.isfinite(quality):
         quality = 0.0
-    actuators = list(closure["actuators"])
+    actuators = list(closure.get("commands") or closure["actuators"])
     approach = gripper_translation(approach_direction, frame_id, approach_distance, 0.5 * approach_distance)
     retreat = gripper_translation(retreat_direction, frame_id, retreat_distance, 0.5 * retreat_distance)
     place_retreat = gripper_translation(

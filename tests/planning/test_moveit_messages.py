@@ -92,6 +92,8 @@ def test_every_grasp_is_the_message_and_survives_cdr(typestore: Any, hand: str, 
         msg = grasp["moveit_grasp"]
         assert msg["grasp_quality"] == grasp["grasp_quality"] and msg["id"] == grasp["id"]
         assert msg["grasp_pose"]["pose"]["position"] == grasp["grasp_pose"]["position"]
-        assert msg["grasp_posture"]["joint_names"] == plan.closure["actuators"]
+        assert msg["grasp_posture"]["joint_names"] == plan.closure["commands"]
         assert msg["grasp_posture"]["points"][0]["positions"] == plan.closure["closed"]
         assert msg["post_grasp_retreat"]["direction"]["vector"] == {"x": 0.0, "y": 0.0, "z": 1.0}
+    expected = {"pisa_iit_softhand": ["synergy"], "parallel_gripper": ["left_jaw", "right_jaw"]}[hand]
+    assert plan.closure["commands"] == expected  # the gripper's jaws by their joints, not softsig's servos
