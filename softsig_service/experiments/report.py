@@ -145,7 +145,7 @@ def plot_summary(spec: CampaignSpec, summary: Mapping[str, Any], path: Path) -> 
     from matplotlib.figure import Figure
 
     cells = {(c["condition"], c["object"]): c for c in summary["cells"]}
-    fig = Figure(figsize=(3.2 * len(spec.objects) + 1.0, 3.6))
+    fig = Figure(figsize=(3.2 * len(spec.objects) + 2.0, 3.8))
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, len(spec.objects), sharey=True, squeeze=False)[0]
     colors = {"S": "#9e9e9e", "C": "#d95f02", "R": "#1b9e77"}
@@ -164,18 +164,25 @@ def plot_summary(spec: CampaignSpec, summary: Mapping[str, Any], path: Path) -> 
                 paper.append(p[s] / p["trials"] if p and s in p else np.nan)
             pos = x - 0.4 + width * (k + 0.5)
             ax.bar(pos, rates, width, color=colors.get(s), label=f"{s} (sim)", yerr=[lo, hi], capsize=3)
+            zero = [p_ for p_, r in zip(pos, rates, strict=True) if r == 0.0]
+            if zero:  # a bar at zero is drawn as a thick stub with a 0 over it, so that it does not vanish
+                ax.plot(zero, [0.004] * len(zero), linestyle="none", marker="_", markersize=width * 40,
+                        markeredgewidth=4, color=colors.get(s))  # fmt: skip
+                for z in zero:
+                    ax.text(z, 0.02, "0", ha="center", va="bottom", fontsize=7, color=colors.get(s))
             if s in ("S", "C"):  # the paper ran S and C only
                 ax.plot(pos, paper, "k^" if s == "S" else "kv", markersize=6, label=f"{s} (paper)")
         ax.set_title(obj)
         ax.set_xticks(x)
-        ax.set_xticklabels([f"{c[0]:g} rad\n{c[1]:g} m" for c in spec.conditions], fontsize=8)
+        ax.set_xticklabels([f"σr = {c[0]:g} rad\nσt = {c[1]:g} m" for c in spec.conditions], fontsize=8)
         ax.set_ylim(0.0, 1.05)
         ax.grid(axis="y", alpha=0.3)
     axes[0].set_ylabel("success rate")
-    axes[-1].legend(fontsize=7, loc="lower left")
+    handles, labels = axes[-1].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=7, loc="center right", frameon=False)  # outside the panels
     title = " vs ".join(spec.strategies)
     fig.suptitle(f"{spec.hand}: {title} under pose uncertainty ({spec.trials} trials per bar, Wilson 95 %)", fontsize=9)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.0, 0.9, 1.0))
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
 
