@@ -222,7 +222,8 @@ def _turned(model: Any, table_height: float, field: str) -> TableObject:
     else:
         V0, F0 = check_mesh(np.asarray(model.vertices, dtype=np.float64), np.asarray(model.faces), field)
         shape = trimesh.Trimesh(V0 - 0.5 * (V0.min(axis=0) + V0.max(axis=0)), F0, process=False)
-    own = np.asarray(shape.extents, dtype=np.float64)  # the shape's sizes along its own x, y, z
+    own_vertices = np.asarray(shape.vertices, dtype=np.float64).reshape(-1, 3)
+    own = np.ptp(own_vertices, axis=0) if len(own_vertices) else np.zeros(3)  # its sizes along its own x, y, z
     major, minor = (0, 1) if own[0] >= own[1] else (1, 0)
     axes = R[:, [major, minor, 2]]
     V = np.asarray(shape.vertices, dtype=np.float64) @ R.T

@@ -241,8 +241,13 @@ def test_a_replaced_hand_is_planned_anew_by_every_worker(tmp_path: Path) -> None
         put = httpx.put(f"{url}/v1/hands/g", files=upload(long), headers={**KEY, "If-Match": r.headers["etag"]},
                         timeout=60)  # fmt: skip
         assert put.status_code == 200, put.text
-        assert all(p["hand_revision"] == 2 and _close(p, expected_long) for p in plans(url, 16))
-        after = _plans_served(metrics_dir)
+        # which process accepts a connection is the kernel's choice: plan until both have planned the new hand
+        # (at most 96 requests), every answer the fresh process's
+        for _ in range(6):
+            assert all(p["hand_revision"] == 2 and _close(p, expected_long) for p in plans(url, 16))
+            after = _plans_served(metrics_dir)
+            if all(after[pid] > before[pid] for pid in before):
+                break
         assert all(after[pid] > before[pid] for pid in before), (before, after)
         d = httpx.delete(f"{url}/v1/hands/g", headers={**KEY, "If-Match": put.headers["etag"]}, timeout=60)
         assert d.status_code == 204, d.text

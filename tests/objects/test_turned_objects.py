@@ -83,3 +83,14 @@ def test_bad_orientations_are_named(pose: dict[str, object], field: str) -> None
     with pytest.raises(InvalidInput) as info:
         object_from_json({**BOX, "pose": pose})
     assert info.value.field == field
+
+
+def test_a_turned_shape_too_small_to_mesh_is_refused_not_a_crash() -> None:
+    """A 0.1 mm cylinder turned by a quaternion collapses to no triangles: 422, not an IndexError (a 500)."""
+    from softsig_service.errors import InvalidInput
+    from softsig_service.objects import object_from_json
+
+    spec = {"kind": "cylinder", "length": 0.0001, "radius": 0.0001, "mass": 0.0001, "orientation": "lying",
+            "pose": {"x": 0.5, "y": 0.0, "z": 0.0, "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}}  # fmt: skip
+    with pytest.raises(InvalidInput):
+        object_from_json(spec)
