@@ -5,7 +5,9 @@ processes and servers without a display. Everything is drawn in the hand frame.
 
 * Left: one arrow per pull direction from the origin, of length = break force [N] along the direction, coloured
   by the force; a capped direction (the object held at the cap) is drawn dashed with an open marker at its tip;
-  a grasp the hand does not hold alone (every force 0) is stated in the title.
+  a grasp the hand does not hold alone (every force 0) is stated in the title. The scale is robust
+  (:func:`robust_limit`): a force far above the others (beyond the upper quartile plus 3 interquartile ranges) is
+  drawn at that limit with a red cross and its value written, so one outlier does not squash the rest.
 * Right: the translational stiffness ellipsoid ``{x : x = sum_k k_k a_k r_k, |a| = 1}`` — semi-axes equal to the
   principal translational stiffnesses ``k_k`` [N/m] along their directions ``r_k`` (eigen-decomposition of
   ``K[:3, :3]``), with the three principal axes drawn and labelled.
@@ -49,6 +51,22 @@ def plot_stiffness_signature(ss: StiffnessSignature, path: Path | str) -> Path:
     return out
 
 
+OUTLIER_IQR = 3.0
+"""A break force beyond the upper quartile plus this many interquartile ranges is an outlier of the plot's scale."""
+
+
+def robust_limit(forces: NDArray[np.float64]) -> float:
+    """The plot's force scale [N]: the largest force, or, when some lie beyond ``Q3 + OUTLIER_IQR * IQR`` (and
+    at least four forces are given), the largest force within that fence."""
+    f = np.asarray(forces, dtype=np.float64)
+    if len(f) < 4:
+        return float(f.max())
+    q1, q3 = np.percentile(f, [25.0, 75.0])
+    fence = q3 + OUTLIER_IQR * (q3 - q1)
+    inside = f[f <= fence]
+    return float(inside.max()) if len(inside) and inside.max() > 0.0 else float(f.max())
+
+
 def _draw_break_forces(fig: Figure, ax: Axes3D, ss: StiffnessSignature) -> None:
     ax.set_xlabel("x [N]")
     ax.set_ylabel("y [N]")
@@ -63,13 +81,19 @@ def _draw_break_forces(fig: Figure, ax: Axes3D, ss: StiffnessSignature) -> None:
         ax.set_title("break forces: the hand does not hold the object alone (all 0 N)")
         _equal_axes(ax, np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]]))
         return
-    norm = Normalize(vmin=0.0, vmax=fmax)
+    limit = robust_limit(forces)
+    norm = Normalize(vmin=0.0, vmax=limit)
     cmap = colormaps["viridis"]
     tips = []
+    outliers = 0
     for b in bf:
-        tip = b.force * np.asarray(b.direction)
+        tip = min(b.force, limit) * np.asarray(b.direction)
         tips.append(tip)
-        color = cmap(norm(b.force))
+        color = cmap(norm(min(b.force, limit)))
+        if b.force > limit:
+            outliers += 1
+            ax.scatter([tip[0]], [tip[1]], [tip[2]], color="red", s=60, marker="x")
+            ax.text(tip[0], tip[1], tip[2], f" {b.force:.0f} N", color="red", fontsize=8)
         ax.plot([0, tip[0]], [0, tip[1]], [0, tip[2]], color=color, linestyle="--" if b.capped else "-", linewidth=1.4)
         ax.scatter(
             [tip[0]],
@@ -88,7 +112,8 @@ def _draw_break_forces(fig: Figure, ax: Axes3D, ss: StiffnessSignature) -> None:
     capped = sum(1 for b in bf if b.capped)
     title = f"break forces ({len(bf)} directions"
     title += f", {capped} held at the cap" if capped else ""
-    ax.set_title(title + ")")
+    title += f", {outliers} beyond the scale drawn at {limit:.1f} N (x)" if outliers else ""
+    ax.set_title(title + ")", fontsize=9)
 
 
 def _draw_ellipsoid(ax: Axes3D, ss: StiffnessSignature) -> None:

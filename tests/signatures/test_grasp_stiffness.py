@@ -219,3 +219,12 @@ def test_signature_json_and_plot(apple_signatures: dict[str, StiffnessSignature]
     assert out.stat().st_size > 10_000
     with pytest.raises(InvalidInput):
         plot_stiffness_signature(ss, tmp_path / "ss.txt")
+
+
+def test_the_break_force_scale_ignores_one_outlier_and_keeps_a_spread() -> None:
+    from softsig_service.experiments.stiffness_plot import robust_limit
+
+    spread = np.array([4.0, 5.0, 6.0, 5.5, 4.5, 7.0, 6.5, 5.0])
+    assert robust_limit(spread) == 7.0  # no outlier: the largest force
+    assert robust_limit(np.append(spread, 100.0)) == 7.0  # one 100 N outlier is left off the scale
+    assert robust_limit(np.array([1.0, 100.0])) == 100.0  # too few forces to call one an outlier
