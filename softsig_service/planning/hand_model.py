@@ -61,10 +61,6 @@ class HandPlanningModel:
     point_names: tuple[str, ...] = ()
     """The reference points' names, in the order of ``points_open``."""
 
-    def flange_pose(self, T_world_grasp: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The flange pose ``T_world_tool0`` (4x4) that puts the grasp frame at ``T_world_grasp``."""
-        return np.asarray(T_world_grasp @ np.linalg.inv(self.grasp_in_flange), dtype=np.float64)
-
     def placement_point(self, strategy: str, placement: Placement) -> NDArray[np.float64]:
         """The hand-frame point [m] the planner puts over the object's centre for ``strategy`` and ``placement``."""
         if placement == "open_centre":
