@@ -18,6 +18,9 @@ cell (condition ``(sigma_r [rad], sigma_t [m])``, object, strategy) ``trials`` t
 * **Strategy R** (:mod:`softsig_service.planning.strategy_r`): before the trials, the hand's capture model on
   each object is read from ``capture/<object>.json`` or built there by simulation
   (:mod:`softsig_service.experiments.capture`); R's trials plan with it for their condition's sigmas.
+* **Replicas**: trials that are the same simulation (a cell with sigmas 0 draws the zero perturbation for every
+  seed) are simulated once and recorded for each, with ``same_as`` naming the simulated one
+  (:mod:`softsig_service.experiments.replicas`; ``reuse_identical=False`` simulates all).
 * **Resuming**: running the same spec with the same ``out`` skips every trial already in ``trials.jsonl`` (a
   torn last line of an interrupted run is ignored). A different spec in the same folder is refused.
 * **Report** (:mod:`softsig_service.experiments.report`): a Markdown table laid out like the paper's Table I
@@ -54,6 +57,7 @@ from softsig_service.experiments.campaign_spec import (
     TrialSpec,
     plan_options,
 )
+from softsig_service.experiments.replicas import group, replica
 from softsig_service.experiments.report import write_report
 from softsig_service.experiments.statistics import summarize
 from softsig_service.signatures.capture import CaptureModel
@@ -230,6 +234,7 @@ def run_campaign(
     progress: bool | ProgressCallback = False,
     max_trials: int | None = None,
     settings: Settings | None = None,
+    reuse_identical: bool = True,
 ) -> CampaignResult:
     """Run (or resume) ``spec`` writing into ``out``; see the module docstring.
 
@@ -237,8 +242,9 @@ def run_campaign(
     the local backend runs in this process (no pool). ``progress``: True for a rich progress bar on stderr, or
     a callback. ``max_trials``: stop after this many new trials (an interruption on purpose; the campaign
     stays resumable). ``settings``: the model limits and robots folder every trial loads under (default: the built-in
-    ones; the service passes its own). Raises :class:`InvalidInput` for a bad backend or worker count or a missing Ray,
-    :class:`Conflict` if ``out`` holds another campaign.
+    ones; the service passes its own). ``reuse_identical``: simulate once the trials that are the same simulation
+    (:mod:`softsig_service.experiments.replicas`; False simulates every trial). Raises :class:`InvalidInput` for
+    a bad backend or worker count or a missing Ray, :class:`Conflict` if ``out`` holds another campaign.
     """
     if backend not in BACKENDS:
         raise InvalidInput("unknown backend", field="backend", value=backend, choices=BACKENDS)
@@ -257,10 +263,8 @@ def run_campaign(
         specs = [dataclasses.replace(t, capture_file=str(capture[t.object])) if t.strategy == "R" else t for t in specs]
     by_key = {t.key: t for t in specs}
     done = {r["key"]: r for r in read_records(trials_path) if r["key"] in by_key}
-    todo = [t for t in specs if t.key not in done]
-    skipped = len(specs) - len(todo)
-    if max_trials is not None:
-        todo = todo[:max_trials]
+    skipped = len(done)
+    immediate, todo, followers = _plan_work(specs, done, reuse_identical)
 
     callback = progress if callable(progress) else None
     ran = 0
@@ -268,9 +272,18 @@ def run_campaign(
         _progress_bar(bool(progress) and callback is None, len(specs), skipped) as bar_update,
         trials_path.open("a", encoding="utf-8") as sink,
     ):
-        if todo and _ends_torn(trials_path):
+        if (immediate or todo) and _ends_torn(trials_path):
             sink.write("\n")  # a torn last line of an interrupted run stays alone on its line
-        for record in _execute(todo, backend, n_workers, address, settings):
+
+        def outcomes() -> Iterator[dict[str, Any]]:
+            yield from immediate
+            for record in _execute(todo, backend, n_workers, address, settings):
+                yield record
+                yield from (replica(record, t) for t in followers.get(record["key"], ()))
+
+        for record in outcomes():
+            if max_trials is not None and ran >= max_trials:
+                break
             sink.write(json.dumps(record) + "\n")
             sink.flush()
             done[record["key"]] = record
@@ -290,6 +303,29 @@ def run_campaign(
     return result
 
 
+def _plan_work(
+    specs: list[TrialSpec], done: dict[str, dict[str, Any]], reuse_identical: bool
+) -> tuple[list[dict[str, Any]], list[TrialSpec], dict[str, list[TrialSpec]]]:
+    """What is left of ``specs`` given the records ``done``: the replicas that need no simulation (their
+    simulation is already recorded), the trials to simulate, and per simulated trial the trials that replicate it."""
+    groups = group(specs) if reuse_identical else {(t.key,): [t] for t in specs}
+    immediate: list[dict[str, Any]] = []
+    todo: list[TrialSpec] = []
+    followers: dict[str, list[TrialSpec]] = {}
+    for members in groups.values():
+        missing = [t for t in members if t.key not in done]
+        if not missing:
+            continue
+        source = next((done[t.key] for t in members if t.key in done), None)
+        if source is not None:
+            immediate += [replica(source, t) for t in missing]
+        else:
+            todo.append(missing[0])
+            followers[missing[0].key] = missing[1:]
+    todo.sort(key=lambda t: t.index)
+    return immediate, todo, followers
+
+
 @contextmanager
 def _progress_bar(enabled: bool, total: int, completed: int) -> Iterator[Callable[[], None]]:
     """A rich progress bar on stderr (or nothing); yields the function that advances it by one trial."""
@@ -297,11 +333,19 @@ def _progress_bar(enabled: bool, total: int, completed: int) -> Iterator[Callabl
         yield lambda: None
         return
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, ProgressColumn, Task, TextColumn
+    from rich.text import Text
 
-    bar = Progress(
-        TextColumn("trials"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=Console(stderr=True)
-    )
+    from softsig_service.experiments.progress import Progress as Meter
+
+    meter = Meter(total, start=completed)
+
+    class RateColumn(ProgressColumn):  # rate and time left of this run's trials (resumed ones count neither)
+        def render(self, task: Task) -> Text:
+            meter.update(int(task.completed))
+            return Text(meter.message().split(", ", 1)[1] if meter.rate is not None else "")
+
+    bar = Progress(TextColumn("trials"), BarColumn(), MofNCompleteColumn(), RateColumn(), console=Console(stderr=True))
     task = bar.add_task("trials", total=total, completed=completed)
     with bar:
         yield lambda: bar.advance(task)

@@ -224,7 +224,7 @@ def run_trial(
         sag=None if sim.unstable else cfg.lift - sim.rise,
         slip=sim.slip,
         settle_drop=sim.settle_drop,
-        diagnosis={"phases": sim.phases, "released_at": sim.released_at},
+        diagnosis={"phases": sim.phases, "released_at": sim.released_at, "stopped": sim.stopped},
         **common,
     )
 

@@ -11,6 +11,7 @@ from typing import Any
 
 from softsig_service.config import ModelLimits, Settings
 from softsig_service.errors import InvalidHandModel, SoftsigError
+from softsig_service.experiments.progress import Progress
 from softsig_service.services.job_process import JobContext
 from softsig_service.services.serialize import to_jsonable
 
@@ -126,9 +127,12 @@ def run_capture_signature(params: dict[str, Any], ctx: JobContext) -> dict[str, 
     from softsig_service.experiments.capture import CaptureGrid, build_capture_model
 
     grid = CaptureGrid(**params["grid"])
+    meter = Progress(0)
 
     def progress(done: int, of: int) -> None:
-        ctx.progress(done / of if of else 1.0, f"{done} of {of} simulations")
+        meter.total = of
+        meter.update(done)
+        ctx.progress(meter.fraction, meter.message("simulations"))
 
     model = build_capture_model(
         str(params["hand_ref"]), params["object"], grid, workers=int(params.get("workers") or 1), progress=progress,
@@ -164,14 +168,16 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     trials, seed = int(params["trials"]), int(params["seed"])
     settings = job_settings(params)
     results = []
-    ctx.progress(0.0, f"0 of {trials} trials")
+    meter = Progress(trials)
+    ctx.progress(0.0, meter.message())
     for k in range(trials):
         result = run_trial(
             str(params["hand_ref"]), obj, params["strategy"], seed=trial_seed(seed, (), k),
             sigma_r=float(params["sigma_r"]), sigma_t=float(params["sigma_t"]), settings=settings, obstacles=obstacles,
         )  # fmt: skip
         results.append(result)
-        ctx.progress((k + 1) / trials, f"{k + 1} of {trials} trials")
+        meter.update(k + 1)
+        ctx.progress(meter.fraction, meter.message())
     outcomes = [
         {"seed": r.seed, "success": r.success, "reason": r.reason, "lift_height": r.lift_height} for r in results
     ]
@@ -211,9 +217,15 @@ def run_experiment(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     spec = CampaignSpec(hand=str(params["hand_ref"]), trials=int(params["trials"]), seed=int(params["seed"]))
     total = len(spec.trial_specs())
     ctx.progress(0.0, f"0 of {total} trials")
+    meter = Progress(total)
+    first = True
 
     def progress(done: int, of: int) -> None:
-        ctx.progress(done / of if of else 1.0, f"{done} of {of} trials")
+        nonlocal first
+        if first:  # the first report follows this run's first trial: what came before was a resumed run's
+            meter.start, first = done - 1, False
+        meter.update(done)
+        ctx.progress(meter.fraction, meter.message())
 
     result = run_campaign(
         spec, ctx.out_dir, workers=params.get("workers"), progress=progress, settings=job_settings(params)

@@ -19,6 +19,8 @@ import numpy as np
 from softsig_service.simulation.scene_model import GEOM_HAND, GEOM_OBJECT, HAND_PREFIX, Scene
 
 PHASES: tuple[str, ...] = ("approach", "closure", "lift", "hold")
+"""The phases a rollout runs; a trial stopped early (``softsig_service.simulation.rollout.STOP_RULES``) ends its
+diagnosis with a snapshot named ``stopped``."""
 NO_FORCE = 0.05
 """[N] a hand body pressing less than this on the object is reported as touching without load."""
 
@@ -71,6 +73,9 @@ def summary(diagnosis: Mapping[str, Any]) -> str:
             if contacts and all(v < NO_FORCE for v in contacts.values()):
                 text += ", none loaded"
             parts.append(text)
+            continue
+        if snap["phase"] == "stopped":
+            parts.append(f"stopped at {snap['time']:.2f} s with the object on the table, out of the hand's reach")
             continue
         where = "on the table" if snap["touches_table"] else f"{snap['height'] * 1000:.0f} mm above the table"
         held = f"held by {len(contacts)}" if contacts else "not in the hand"

@@ -54,6 +54,12 @@ A failed trial says why, checked in this order:
   the hold, but not at the end of the hold;
 * ``no_contact``: the object touched the hand neither at the end of the closure nor at any time after it.
 
+**Early stop** (:attr:`RolloutConfig.early_stop`, on by default): a trial whose outcome is decided before its
+schedule ends stops there (:data:`STOP_RULES`): a diverged simulation, or, during the lift or the hold, an object
+lying at rest on the table out of the rising hand's reach (its verdict, ``dropped`` or ``no_contact``, is the one
+the full schedule gives; the stop is recorded in :attr:`SimOutcome.stopped`). A carried object is always held to
+the end of the hold.
+
 A trial is deterministic for a seed: same seed, same perturbation, same plan, same simulation, same outcome
 (MuJoCo is deterministic on one machine and build).
 """
@@ -75,7 +81,7 @@ from softsig_service.errors import InvalidInput
 from softsig_service.hands.closure import closure_command
 from softsig_service.objects import TableObject
 from softsig_service.simulation.diagnosis import snapshot
-from softsig_service.simulation.scene_model import Scene
+from softsig_service.simulation.scene_model import ContactSummary, Scene
 
 FloatArray = NDArray[np.float64]
 _BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
@@ -107,6 +113,8 @@ class RolloutConfig:
         control_period: [s] period of the controller (servo targets updated, contacts checked); a multiple
             of the scene's time step (rounded to one).
         waypoints: number of IK waypoints along each Cartesian line (approach, lift), ends included.
+        early_stop: end a trial as soon as its outcome is decided (:data:`STOP_RULES`); the verdict is the one
+            the full schedule gives (``tests/simulation/test_early_stop.py`` checks it on every Table I cell).
     """
 
     lift: float = LIFT
@@ -116,6 +124,7 @@ class RolloutConfig:
     hold_time: float = 1.0
     control_period: float = 0.01
     waypoints: int = WAYPOINTS
+    early_stop: bool = True
 
     def __post_init__(self) -> None:
         for name in ("lift", "approach_time", "lift_time", "control_period"):
@@ -161,6 +170,26 @@ SETTLE_DROP = 0.001
 (an object resting on the table sinks by well under it into the soft contact)."""
 
 
+OUT_OF_REACH_CLEARANCE = 0.01
+"""[m] the least gap between the hand's lowest point and the highest point the object could still reach that puts
+it out of reach (covers the servos' few-mm tracking error and the closed fingers' sway)."""
+
+STOP_RULES: dict[str, str] = {
+    "out_of_reach": (
+        "during the lift or the hold, in a scene without obstacles, the object touches nothing but the table and "
+        "the lowest point of the hand's geoms lies at least OUT_OF_REACH_CLEARANCE above the highest point the "
+        "object can still reach: its centre of mass at most (|v| + |w| r)^2 / (2 g) above where it is (its kinetic "
+        "energy bounds the rise; v, w its linear and angular velocity, r its farthest point from its origin) plus "
+        "its farthest point from its centre of mass. The hand only rises (lift) or stays (hold) from there and "
+        "the arm's links ride above it, so the object is never touched again: the trial ends 'dropped' (it was "
+        "in the hand) or 'no_contact' (it never was), as the full schedule would"
+    ),
+    "diverged": "the simulation diverged (non-finite state or a MuJoCo warning): 'sim_unstable'",
+}
+"""Why a simulated trial may end before its schedule does (:attr:`RolloutConfig.early_stop`); the
+``diverged`` rule applies always."""
+
+
 @dataclass
 class SimOutcome:
     """What a simulated trial records for the judge (world frame, SI units).
@@ -197,6 +226,9 @@ class SimOutcome:
     released_at: float | None = None
     """[s] the first moment of the lift or hold at which the object touched no part of the hand, when the closure
     had ended in contact (None: never)."""
+    stopped: dict[str, Any] | None = None
+    """The trial ended before its schedule: ``{"rule": <a key of STOP_RULES>, "time": [s]}`` (None: it ran to the
+    end, or stopped on a failed IK)."""
 
 
 def judge(sim: SimOutcome, cfg: RolloutConfig) -> str | None:
@@ -230,9 +262,13 @@ class Run:
         dt = float(scene.model.opt.timestep)
         self.nsub = max(1, round(cfg.control_period / dt))
         self.tick = self.nsub * dt
+        self.early_stop = cfg.early_stop and scene.obstacle_geoms.size == 0
+        self.object_dof = int(scene.model.jnt_dofadr[scene.model.body_jntadr[scene.object_body]])
+        self.gravity = float(np.linalg.norm(scene.model.opt.gravity))
 
     def step(self, grasping: bool) -> bool:
-        """One control tick with the controls as set; False if the simulation diverged.
+        """One control tick with the controls as set; False if the trial ends here (the simulation diverged, or
+        its outcome is decided: :attr:`SimOutcome.stopped`).
 
         ``grasping``: the object is (meant to be) in the hand (lift and hold), so its contacts with the arm's
         links (held against the flange, or falling past the wrist) are not arm collisions, and its contacts
@@ -241,6 +277,7 @@ class Run:
         mujoco.mj_step(scene.model, data, self.nsub)
         if not np.isfinite(data.qpos).all() or data.warning[_BADQACC].number:
             out.unstable = True
+            out.stopped = {"rule": "diverged", "time": round(float(data.time), 4)}
             return False
         contacts = scene.contact_summary(data)
         arm_hit = contacts.arm_table or contacts.arm_obstacle or (contacts.arm_object and not grasping)
@@ -251,7 +288,23 @@ class Run:
         elif grasping and out.touching_after_close and out.released_at is None:
             out.released_at = float(data.time)
         out.max_rise = max(out.max_rise, float(scene.object_position(data)[2]) - self.z0)
+        if grasping and self.early_stop and self._out_of_reach(contacts):
+            out.stopped = {"rule": "out_of_reach", "time": round(float(data.time), 4)}
+            return False
         return True
+
+    def _out_of_reach(self, contacts: ContactSummary) -> bool:
+        """Whether the ``out_of_reach`` rule of :data:`STOP_RULES` holds now."""
+        if contacts.object_hand or contacts.arm_object:
+            return False
+        scene, data = self.scene, self.data
+        hand_low, _ = scene.vertical_extent(data, scene.hand_geoms)
+        v = data.qvel[self.object_dof : self.object_dof + 6]
+        r_origin, r_com = scene.object_reach
+        speed = float(np.linalg.norm(v[:3])) + float(np.linalg.norm(v[3:])) * r_origin  # bounds every point's
+        rise = speed * speed / (2.0 * self.gravity) if self.gravity > 0.0 else math.inf
+        reach = float(data.xipos[scene.object_body][2]) + rise + r_com
+        return hand_low >= reach + OUT_OF_REACH_CLEARANCE
 
     def phase(
         self,
@@ -263,7 +316,7 @@ class Run:
     ) -> bool:
         """Run ``duration`` [s] with the arm's and the closure's targets as functions of the phase time [s] (set
         for the end of each tick: servos lead by one tick), calling ``after_tick`` after each; False if the
-        simulation diverged. ``grasping`` as in :meth:`step`."""
+        trial ended (:meth:`step`). ``grasping`` as in :meth:`step`."""
         data, scene = self.data, self.scene
         n = max(1, math.ceil(duration / self.tick - 1e-9))
         for k in range(n):
@@ -286,14 +339,17 @@ class Run:
             self.out.max_rise = 0.0
 
     def finish(self, ok: bool, p_hold: FloatArray) -> SimOutcome:
-        """The outcome, with what the end of the hold shows when the trial ran to it (``ok``); ``p_hold`` [m] is
-        the object's centre in the flange frame at the start of the hold."""
+        """The outcome, with what the end of the hold shows when the trial ran to it (``ok``) or stopped on the
+        ``out_of_reach`` rule (the object on the table, out of the hand, as the end of the hold would show it);
+        ``p_hold`` [m] is the object's centre in the flange frame at the start of the hold."""
         scene, data, out = self.scene, self.data, self.out
         out.sim_time = float(data.time)
-        if ok:
+        if ok or (out.stopped is not None and out.stopped["rule"] == "out_of_reach"):
+            contacts = scene.contact_summary(data)
             out.rise = float(scene.object_position(data)[2]) - self.z0
-            out.touching_end = scene.contact_summary(data).object_hand
-            out.touching_table_end = scene.object_touches_table(data)
+            out.touching_end = contacts.object_hand
+            out.touching_table_end = contacts.object_table
+        if ok:
             out.slip = float(np.linalg.norm(scene.object_in_flange(data) - p_hold))
         return out
 
@@ -355,4 +411,6 @@ def simulate(
     ok = ok and (cfg.hold_time <= 0.0 or phase(cfg.hold_time, lambda _t: q_top, closed_hand, True))
     if ok and cfg.hold_time > 0.0:
         seen("hold")
+    if run.out.stopped is not None and run.out.stopped["rule"] == "out_of_reach":
+        seen("stopped")
     return run.finish(ok, p_hold)

@@ -53,12 +53,36 @@ OBJECT_ROLLING_FRICTION = 0.0001
 
 class ContactSummary(NamedTuple):
     """Which pairs touch: the object and the hand, an arm link and the table, an arm link and the object, an arm
-    link and an obstacle."""
+    link and an obstacle, the object and the table."""
 
     object_hand: bool
     arm_table: bool
     arm_object: bool
     arm_obstacle: bool = False
+    object_table: bool = False
+
+
+_PAIRS: tuple[tuple[int, int], ...] = (
+    (GEOM_OBJECT, GEOM_HAND),
+    (GEOM_ARM, GEOM_TABLE),
+    (GEOM_ARM, GEOM_OBJECT),
+    (GEOM_ARM, GEOM_OBSTACLE),
+    (GEOM_OBJECT, GEOM_TABLE),
+)
+"""The geom-class pairs of :class:`ContactSummary`, in its field order."""
+
+
+def _pair_bits() -> NDArray[np.uint8]:
+    """Per (class, class): the bit of its :data:`_PAIRS` entry (0 for a pair nobody asks about)."""
+    n = GEOM_OBSTACLE + 1
+    bits = np.zeros((n, n), dtype=np.uint8)
+    for k, (a, b) in enumerate(_PAIRS):
+        bits[a, b] = bits[b, a] = 1 << k
+    return bits
+
+
+_PAIR_BITS = _pair_bits()
+_NO_CONTACT = ContactSummary(False, False, False, False, False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,36 +170,48 @@ class Scene:
         """Which classes of geoms touch in the current contacts (distance <= 0: penetrating, carrying force)."""
         n = data.ncon
         if n == 0:
-            return ContactSummary(False, False, False, False)
+            return _NO_CONTACT
         con = data.contact
-        cls = self.geom_class[con.geom[:n]]
-        cls = cls[con.dist[:n] <= 0.0]
-        c1, c2 = cls[:, 0], cls[:, 1]
-
-        def pair(a: int, b: int) -> bool:
-            return bool(np.any(((c1 == a) & (c2 == b)) | ((c1 == b) & (c2 == a))))
-
-        return ContactSummary(
-            pair(GEOM_OBJECT, GEOM_HAND), pair(GEOM_ARM, GEOM_TABLE), pair(GEOM_ARM, GEOM_OBJECT),
-            pair(GEOM_ARM, GEOM_OBSTACLE),
-        )  # fmt: skip
+        cls = self.geom_class[con.geom[:n][con.dist[:n] <= 0.0]]
+        if cls.size == 0:
+            return _NO_CONTACT
+        bits = int(np.bitwise_or.reduce(_PAIR_BITS[cls[:, 0], cls[:, 1]]))
+        return ContactSummary(*(bool(bits & (1 << k)) for k in range(len(_PAIRS))))
 
     def object_touches_table(self, data: mujoco.MjData) -> bool:
         """Whether an object geom touches the table in the current contacts (distance <= 0)."""
-        n = data.ncon
-        if n == 0:
-            return False
-        con = data.contact
-        cls = self.geom_class[con.geom[:n]][con.dist[:n] <= 0.0]
-        hit = ((cls[:, 0] == GEOM_OBJECT) & (cls[:, 1] == GEOM_TABLE)) | (
-            (cls[:, 0] == GEOM_TABLE) & (cls[:, 1] == GEOM_OBJECT)
-        )
-        return bool(np.any(hit))
+        return self.contact_summary(data).object_table
+
+    def vertical_extent(self, data: mujoco.MjData, geoms: IntArray) -> tuple[float, float]:
+        """(lowest, highest) world z [m] of the geoms ``geoms``: of their axis-aligned bounding boxes (MuJoCo's
+        ``geom_aabb``, in each geom's frame) as posed in ``data``; it contains every point of the geoms."""
+        aabb = self.model.geom_aabb[geoms]
+        rz = data.geom_xmat[geoms, 6:9]  # row z of each geom's rotation
+        zc = data.geom_xpos[geoms, 2] + np.einsum("ij,ij->i", rz, aabb[:, :3])
+        zh = np.einsum("ij,ij->i", np.abs(rz), aabb[:, 3:])
+        return float(np.min(zc - zh)), float(np.max(zc + zh))
 
     def object_in_flange(self, data: mujoco.MjData) -> FloatArray:
         """Position [m] of the object's centre in the flange (``tool0`` = hand) frame."""
         R = data.xmat[self.flange_body].reshape(3, 3)
         return np.asarray(R.T @ (data.xpos[self.object_body] - data.xpos[self.flange_body]), dtype=np.float64)
+
+    @functools.cached_property
+    def object_reach(self) -> tuple[float, float]:
+        """[m] the farthest point of the object's geoms (the corners of their bounding boxes, ``geom_aabb``) from
+        the object body's origin and from its centre of mass."""
+        m = self.model
+        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
+        r_origin = r_com = 0.0
+        com = np.asarray(m.body_ipos[self.object_body])
+        for g in self.object_geoms:
+            R = np.zeros(9)
+            mujoco.mju_quat2Mat(R, m.geom_quat[g])
+            corners = m.geom_aabb[g, :3] + signs * m.geom_aabb[g, 3:]
+            in_body = m.geom_pos[g] + corners @ R.reshape(3, 3).T
+            r_origin = max(r_origin, float(np.max(np.linalg.norm(in_body, axis=1))))
+            r_com = max(r_com, float(np.max(np.linalg.norm(in_body - com, axis=1))))
+        return r_origin, r_com
 
     @functools.cached_property
     def geom_class(self) -> NDArray[np.int8]:

@@ -153,6 +153,35 @@ def test_resume_after_an_interruption_redoes_nothing(tmp_path: Path) -> None:
     assert _raw(fresh.records) == _outcomes(final.records)  # resuming changed no outcome
 
 
+def test_identical_trials_are_simulated_once_and_recorded_for_each(tmp_path: Path) -> None:
+    """A nominal cell draws the zero perturbation for every seed: one simulation, its record replicated under each
+    trial's labels, the same outcomes as simulating all of them; a resumed campaign replicates a recorded one."""
+    spec = CampaignSpec(conditions=((0.0, 0.0), (0.1, 0.01)), objects=("box",), strategies=("C",), trials=3, seed=5)
+    simulated: list[str] = []
+    reused = run_campaign(spec, tmp_path / "reused", workers=1)
+    every = run_campaign(spec, tmp_path / "every", workers=1, reuse_identical=False)
+    assert _raw(reused.records) == _outcomes(every.records)
+    by_key = {r["key"]: r for r in reused.records}
+    nominal = [by_key[f"c0/box/C/{k}"] for k in range(3)]
+    assert "same_as" not in nominal[0] and nominal[0]["wall_time"] > 0.0
+    for k, r in enumerate(nominal[1:], start=1):
+        assert r["same_as"] == "c0/box/C/0" and r["wall_time"] == 0.0 and r["trial"] == k
+        assert r["seed"] == trial_seed(5, (0, 0, 0), k) != nominal[0]["seed"]
+        assert {key: r[key] for key in ("success", "reason", "lift_height", "diagnosis")} == {
+            key: nominal[0][key] for key in ("success", "reason", "lift_height", "diagnosis")
+        }
+    assert all("same_as" not in by_key[f"c1/box/C/{k}"] for k in range(3))  # distinct perturbations
+    assert not any("same_as" in r for r in every.records)
+
+    resumed_dir = tmp_path / "resumed"
+    first = run_campaign(spec, resumed_dir, workers=1, max_trials=1)
+    assert first.ran == 1 and [r["key"] for r in first.records] == ["c0/box/C/0"]
+    rest = run_campaign(spec, resumed_dir, workers=1, progress=lambda done, total: simulated.append(f"{done}/{total}"))
+    assert rest.ran == 5 and rest.skipped == 1 and rest.complete
+    assert simulated[:2] == ["2/6", "3/6"]  # the two replicas come first, before any simulation
+    assert _raw(rest.records) == _outcomes(reused.records)
+
+
 def test_another_campaign_in_the_same_folder_is_refused(tmp_path: Path) -> None:
     spec = CampaignSpec(conditions=((0.0, 0.0),), objects=("apple",), strategies=("S",), trials=1)
     run_campaign(spec, tmp_path, workers=1)

@@ -8,13 +8,18 @@ import pytest
 from softsig_service.experiments.trial import run_trial
 from softsig_service.objects import builtin_object
 from softsig_service.simulation.diagnosis import PHASES, summary
+from softsig_service.simulation.rollout import RolloutConfig
 
 BOX = builtin_object("box")
 
 
 @pytest.fixture(scope="module")
 def drop_and_carry() -> tuple[object, object]:
-    return run_trial("pisa_iit_softhand", BOX, "S", seed=0), run_trial("pisa_iit_softhand", BOX, "C", seed=0)
+    full = RolloutConfig(early_stop=False)  # every phase boundary (the drop would stop early in the lift)
+    return (
+        run_trial("pisa_iit_softhand", BOX, "S", seed=0, config=full),
+        run_trial("pisa_iit_softhand", BOX, "C", seed=0, config=full),
+    )
 
 
 def test_a_drop_is_seen_leaving_the_hand_during_the_lift(drop_and_carry: tuple[object, object]) -> None:
