@@ -2,9 +2,11 @@
 
 Run: .venv/bin/python benchmarks/bench_api.py [--requests 400] [--concurrency 8] [--seconds 60] [--strategy C]
      [--workers N]   (service processes, default: every CPU)
-     .venv/bin/python benchmarks/bench_api.py --per-request --workers 1 --requests 300 --strategy S [--client stdlib]
-                     (server CPU per request, one at a time, beside a cheap route, a rejected body and a stored
-                     plan read back)
+     .venv/bin/python benchmarks/bench_api.py --per-request --workers 2 --requests 400 --client stdlib
+                     (server CPU per request, one at a time: the health check, a hand, a rejected body, a stored
+                     plan read back, plans; beside the framework's floor, a bare FastAPI app with one route on the
+                     same uvicorn, uvloop and httptools with as many processes (floor_app.py), and each as a
+                     multiple of it against its target)
      .venv/bin/python benchmarks/bench_api.py --baseline 5354fe9 --rounds 3 --client stdlib
                      (also the service of an earlier revision, exported with ``git archive`` and served from its
                      own folder; A B A B ... in turn, a fresh data folder per run)
@@ -267,34 +269,100 @@ def run(
     }
 
 
-def per_request(url: str, server_pid: int, n: int, strategy: str, client: str = "httpx") -> None:
-    """Print wall time and server CPU [ms] per request, one request at a time, for a cheap route, a request that
-    fails validation, a stored plan read back (a plan's response without planning), and plans not stored and
-    stored: what the HTTP stack costs beside the planner."""
+def start_floor(workers: int) -> tuple[subprocess.Popen[bytes], str]:
+    """The bare FastAPI app of ``floor_app.py`` on uvicorn (uvloop, httptools) with ``workers`` processes on a free
+    loopback port; (process, URL) once it answers."""
+    port = free_port()
+    cmd = [sys.executable, "-m", "uvicorn", "floor_app:app", "--host", "127.0.0.1", "--port", str(port),
+           "--workers", str(workers), "--loop", "uvloop", "--http", "httptools", "--log-level", "warning",
+           "--no-access-log"]  # fmt: skip
+    proc = subprocess.Popen(cmd, cwd=Path(__file__).parent, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    url = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        with contextlib.suppress(httpx.HTTPError):
+            if httpx.get(f"{url}/floor", timeout=1).status_code == 200:
+                return proc, url
+        time.sleep(0.1)
+    proc.kill()
+    raise SystemExit("the floor app did not answer within 60 s")
+
+
+def measure(server_pid: int, n: int, call: Any) -> tuple[float, float, float]:
+    """(wall, server CPU, client CPU) [ms] per call of ``call``, ``n`` calls one after the other."""
+    cpu_server, cpu_client, t0 = process_cpu_seconds(server_pid), time.process_time(), time.perf_counter()
+    for _ in range(n):
+        call()
+    wall = time.perf_counter() - t0
+    cpu_server, cpu_client = process_cpu_seconds(server_pid) - cpu_server, time.process_time() - cpu_client
+    return wall / n * 1e3, cpu_server / n * 1e3, cpu_client / n * 1e3
+
+
+def floor_cost(workers: int, n: int, client: str) -> float:
+    """Server CPU [ms] per ``GET /floor`` of the bare app (:func:`start_floor`), one request at a time."""
+    proc, url = start_floor(workers)
+    poster: Poster = CLIENTS[client](url)
+    try:
+        wait_idle(proc.pid)
+        measure(proc.pid, 50, lambda: poster.get("/floor"))  # warm-up
+        return measure(proc.pid, n, lambda: poster.get("/floor"))[1]
+    finally:
+        poster.close()
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+PER_REQUEST_TARGETS: dict[str, float] = {"GET /healthz": 1.5, "GET /v1/hands/{hand}": 2.5, "GET /v1/plans/{id}": 2.5}
+"""Server CPU per request as a multiple of the floor's, at most (POST /v1/plans: the planner's time + 2.5 floors)."""
+POST_TARGET = 2.5
+
+
+def per_request(
+    url: str, server_pid: int, n: int, strategy: str, client: str = "httpx", floor: float | None = None
+) -> None:
+    """Print wall time and server CPU [ms] per request, one request at a time, for the health check, a hand, a request
+    that fails validation, a stored plan read back (a plan's response without planning), and plans not stored and
+    stored: what the HTTP stack costs beside the planner. With ``floor`` (the bare app's server CPU [ms] per request)
+    also each as a multiple of it, against :data:`PER_REQUEST_TARGETS`."""
     rng = random.Random(11)
     poster: Poster = CLIENTS[client](url)
+    planner: list[float] = []
 
     def post(body: dict[str, Any]) -> tuple[int, bytes]:
-        return poster.post("/v1/plans", body, json.dumps(body).encode())
+        status, content = poster.post("/v1/plans", body, json.dumps(body).encode())
+        if status in (200, 201):
+            planner.append(json.loads(content)["timing"]["total"] * 1e3)
+        return status, content
 
     try:
         stored = json.loads(post(plan_body(rng, strategy, True))[1])["links"]["self"]
         cases = (
             ("GET /healthz", lambda: poster.get("/healthz")),
+            ("GET /v1/hands/{hand}", lambda: poster.get("/v1/hands/pisa_iit_softhand")),
             ("POST /v1/plans, invalid body", lambda: post({"hand": "x"})),
             ("GET /v1/plans/{id}", lambda: poster.get(stored)),
             ("POST /v1/plans, not stored", lambda: post(plan_body(rng, strategy, False))),
             ("POST /v1/plans, stored", lambda: post(plan_body(rng, strategy, True))),
         )
         print(f"one request at a time, {n} each, strategy {strategy}, client {client}")
-        print(f"{'request':30s} {'wall ms':>8} {'server CPU ms':>13} {'client CPU ms':>13}")
+        head = f"{'request':30s} {'wall ms':>8} {'server CPU ms':>13} {'client CPU ms':>13}"
+        print(head + (f" {'x floor':>8} {'target':>8}" if floor else ""))
+        if floor:
+            print(f"{'floor: bare FastAPI, GET /floor':30s} {'':>8} {floor:13.2f}")
         for name, call in cases:
-            cpu_server, cpu_client, t0 = process_cpu_seconds(server_pid), time.process_time(), time.perf_counter()
-            for _ in range(n):
-                call()
-            wall = time.perf_counter() - t0
-            cpu_server, cpu_client = process_cpu_seconds(server_pid) - cpu_server, time.process_time() - cpu_client
-            print(f"{name:30s} {wall / n * 1e3:8.2f} {cpu_server / n * 1e3:13.2f} {cpu_client / n * 1e3:13.2f}")
+            planner.clear()
+            wall, server, client_cpu = measure(server_pid, n, call)
+            line = f"{name:30s} {wall:8.2f} {server:13.2f} {client_cpu:13.2f}"
+            if floor and name in PER_REQUEST_TARGETS:
+                line += f" {server / floor:8.2f} {'<= ' + str(PER_REQUEST_TARGETS[name]):>8}"
+            elif floor and planner:
+                plan_ms = statistics.fmean(planner)
+                line += f" {(server - plan_ms) / floor:8.2f} {'<= ' + str(POST_TARGET):>8}"
+                line += f"  (planner {plan_ms:.2f} ms; x floor of the rest)"
+            print(line)
     finally:
         poster.close()
 
@@ -343,11 +411,12 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=1, help="runs of each side, in turn (A B A B ...)")
     args = parser.parse_args()
     if args.per_request:
+        floor = floor_cost(args.workers, args.requests, args.client)
         with (
             tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp,
             serving(Path(tmp), args.workers, None, args.strategy) as (url, pid),
         ):
-            per_request(url, pid, args.requests, args.strategy, args.client)
+            per_request(url, pid, args.requests, args.strategy, args.client, floor)
         return
     print(f"POST /v1/plans, strategy {args.strategy}, pisa_iit_softhand, box at random poses; {os.cpu_count()} CPUs, "
           f"{args.workers} service processes, client {args.client}")  # fmt: skip

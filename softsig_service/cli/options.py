@@ -27,9 +27,9 @@ def emit(data: Any, as_json: bool, text: Callable[[], str | list[str]]) -> None:
     """Print ``data`` as indented JSON with ``as_json`` (in the REST API's form: vectors as ``{"x", "y", "z"}``, no
     NaN, no negative zero), else what ``text()`` gives (a string or lines)."""
     if as_json:
-        from softsig_service.services.serialize import to_jsonable, vectors_as_objects
+        from softsig_service.services.serialize import api_json
 
-        typer.echo(json.dumps(vectors_as_objects(to_jsonable(data)), indent=2))
+        typer.echo(json.dumps(api_json(data), indent=2))
     else:
         out = text()
         typer.echo(out if isinstance(out, str) else "\n".join(out))

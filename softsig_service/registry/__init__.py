@@ -12,9 +12,11 @@ from softsig_service.registry.hands import (
     hand_names,
     hand_ref,
     hand_row,
+    hand_stamp,
     incarnation,
     list_hands,
     replace_hand,
+    stamp_of,
     sync_builtin_hand,
 )
 from softsig_service.registry.idempotency import (
@@ -50,7 +52,15 @@ from softsig_service.registry.models import (
     utcnow,
 )
 from softsig_service.registry.objects import ObjectRecord, add_object, delete_object, get_object, list_objects
-from softsig_service.registry.plans import PlanRecord, add_plan, delete_plan, get_plan, list_plans, purge_plans
+from softsig_service.registry.plans import (
+    PlanRecord,
+    add_plan,
+    delete_plan,
+    get_plan,
+    list_plans,
+    plan_stamp,
+    purge_plans,
+)
 from softsig_service.registry.signatures import (
     SignatureRecord,
     add_signature,
@@ -58,6 +68,7 @@ from softsig_service.registry.signatures import (
     get_signature,
     latest_signature,
     list_signatures,
+    newest_of_object,
     signature_of_object,
 )
 
@@ -103,6 +114,7 @@ __all__ = [
     "hand_names",
     "hand_ref",
     "hand_row",
+    "hand_stamp",
     "head_revision",
     "incarnation",
     "latest_signature",
@@ -112,6 +124,8 @@ __all__ = [
     "list_plans",
     "list_signatures",
     "make_engine",
+    "newest_of_object",
+    "plan_stamp",
     "purge_expired_keys",
     "purge_jobs",
     "purge_plans",
@@ -121,6 +135,7 @@ __all__ = [
     "replace_hand",
     "request_cancel",
     "signature_of_object",
+    "stamp_of",
     "sync_builtin_hand",
     "update_job",
     "upgrade",

@@ -87,6 +87,26 @@ _REF_QUERY = select(_HANDS.c.name, _HANDS.c.revision, _HANDS.c.manifest_path, _H
 )
 
 
+_STAMP_QUERY = select(
+    _HANDS.c.name, _HANDS.c.revision, _HANDS.c.created_at, _HANDS.c.updated_at, _HANDS.c.signature_count
+).where(_HANDS.c.name == bindparam("name"))
+
+
+def hand_stamp(reg: Registry, name: str) -> tuple[Any, ...] | None:
+    """What every field of hand ``name``'s record is determined by: ``(name, revision, created_at, updated_at,
+    signature_count)`` (a new revision for new files or info, a new incarnation for a re-creation, the count and
+    time for a new signature); None if there is none. One indexed row, no JSON column decoded (SQLAlchemy Core):
+    the key of a reader's cache of what it makes of the record (:func:`stamp_of`)."""
+    with reg.read_core() as conn:
+        row = conn.execute(_STAMP_QUERY, {"name": name}).one_or_none()
+    return None if row is None else tuple(row)
+
+
+def stamp_of(record: HandRecord) -> tuple[Any, ...]:
+    """:func:`hand_stamp` of the row ``record`` was read from."""
+    return (record.name, record.revision, record.created_at, record.updated_at, record.signature_count)
+
+
 def _hand(row: HandRow) -> HandRecord:
     return record_from_row(HandRecord, row)
 

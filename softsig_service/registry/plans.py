@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import delete, insert, select
+from sqlalchemy import bindparam, delete, insert, select
 
 from softsig_service.registry.db import Registry
 from softsig_service.registry.models import PlanRow, utcnow
@@ -44,6 +44,18 @@ def add_plan(reg: Registry, *, hand: str, strategy: str, success: bool, request:
     with reg.write_core() as conn:
         conn.execute(_INSERT, {f: getattr(rec, f) for f in _FIELDS})
     return rec
+
+
+_PLANS = PlanRow.__table__
+_STAMP = select(_PLANS.c.created_at).where(_PLANS.c.id == bindparam("plan_id"))
+
+
+def plan_stamp(reg: Registry, plan_id: str) -> datetime | None:
+    """When the plan ``plan_id`` was stored (None: there is none): a stored plan never changes, so ``(id,
+    created_at)`` names its content. One indexed column, no JSON decoded (SQLAlchemy Core)."""
+    with reg.read_core() as conn:
+        value = conn.execute(_STAMP, {"plan_id": plan_id}).scalar_one_or_none()
+    return None if value is None else value
 
 
 def get_plan(reg: Registry, plan_id: str) -> PlanRecord:

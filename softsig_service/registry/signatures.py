@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import func, select, update
+from sqlalchemy import bindparam, func, select, update
 
 from softsig_service.errors import Conflict, NotFound, PreconditionFailed
 from softsig_service.registry.db import Registry
@@ -183,6 +183,32 @@ def signature_of_object(
             return _signature(sig, hand), []
         stale = s.scalars(select(SignatureRow.hand_revision).where(match).distinct()).all()
         return None, sorted(int(r) for r in stale)
+
+
+_SIGS, _HANDS_T = SignatureRow.__table__, HandRow.__table__
+_NEWEST_OF_OBJECT = (
+    select(_SIGS.c.version, _HANDS_T.c.created_at)
+    .join(_HANDS_T, _SIGS.c.hand_id == _HANDS_T.c.id)
+    .where(
+        (_HANDS_T.c.name == bindparam("hand"))
+        & (_SIGS.c.kind == bindparam("kind"))
+        & (_SIGS.c.object_digest == bindparam("digest"))
+        & (_SIGS.c.hand_revision == _HANDS_T.c.revision)
+    )
+    .order_by(_SIGS.c.version.desc())
+    .limit(1)
+)
+
+
+def newest_of_object(reg: Registry, hand: str, kind: str, object_digest: str) -> tuple[int, str] | None:
+    """The version and ETag (:attr:`SignatureRecord.etag`) of :func:`signature_of_object`'s signature, or None
+    (no such hand, or no such signature): one indexed query with SQLAlchemy Core, no JSON decoded, for a reader
+    that keeps what it makes of the signature's data by its ETag (which names its content)."""
+    with reg.read_core() as conn:
+        row = conn.execute(_NEWEST_OF_OBJECT, {"hand": hand, "kind": kind, "digest": object_digest}).one_or_none()
+    if row is None:
+        return None
+    return int(row.version), f'"{hand}.v{row.version}.{incarnation(row.created_at)}"'
 
 
 def fill_object_digests(reg: Registry, digest_of: Callable[[dict[str, Any]], str | None]) -> int:

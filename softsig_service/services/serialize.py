@@ -69,3 +69,28 @@ def vectors_as_objects(value: Any) -> Any:
     if isinstance(value, list):
         return [vectors_as_objects(v) for v in value]
     return value
+
+
+def api_json(value: Any) -> Any:
+    """``vectors_as_objects(to_jsonable(value))`` in one pass over ``value`` (a plan's JSON on every request)."""
+    t = type(value)
+    if t is float:
+        return value + 0.0 if math.isfinite(value) else None
+    if t is str or t is int or t is bool or value is None:
+        return value
+    if isinstance(value, dict):
+        out: dict[str, Any] = {}
+        items = [(k if type(k) is str else str(k), v) for k, v in value.items()]
+        frame = any(k == "origin" for k, _ in items)
+        for k, v in items:
+            j = api_json(v)
+            if (k in VECTOR_KEYS or (frame and k in FRAME_KEYS)) and _is_triple(j):
+                out[k] = {"x": j[0], "y": j[1], "z": j[2]}
+            elif k in VECTOR_ROW_KEYS and isinstance(j, list) and j and all(_is_triple(r) for r in j):
+                out[k] = [{"x": r[0], "y": r[1], "z": r[2]} for r in j]
+            else:
+                out[k] = j
+        return out
+    if isinstance(value, list | tuple):
+        return [api_json(v) for v in value]
+    return vectors_as_objects(to_jsonable(value))

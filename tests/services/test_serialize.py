@@ -69,3 +69,28 @@ def test_vectors_under_vector_keys_become_objects_and_other_lists_stay() -> None
         "items": [{"position": {"x": 1.0, "y": 2.0, "z": 3.0}}],
     }  # fmt: skip
     assert vectors_as_objects(OrderedDict(normal=[0.0, 0.0, 1.0])) == {"normal": {"x": 0.0, "y": 0.0, "z": 1.0}}
+
+
+_keys = st.sampled_from(["axis", "axes", "origin", "x", "y", "z", "center", "directions", "q", "name"]) | st.text(
+    max_size=3
+)
+_vectors = st.lists(st.floats(allow_nan=True, allow_infinity=True) | st.integers(-5, 5), min_size=3, max_size=3)
+_numpy = _vectors.map(lambda v: np.array(v, dtype=np.float64)) | st.floats().map(np.float64)
+_api = st.recursive(
+    _leaves | _vectors | _numpy,
+    lambda inner: (
+        st.lists(inner, max_size=4)
+        | st.lists(inner, max_size=3).map(tuple)
+        | st.dictionaries(_keys | st.integers(0, 3), inner, max_size=5)
+    ),
+    max_leaves=25,
+)
+
+
+@given(_api)
+def test_the_one_pass_form_is_the_two_passes(value: object) -> None:
+    """The API's one-pass conversion gives exactly what the two passes give, numpy values, tuples, frames and
+    non-string keys included."""
+    from softsig_service.services.serialize import api_json
+
+    assert json.dumps(api_json(value)) == json.dumps(vectors_as_objects(to_jsonable(value)))

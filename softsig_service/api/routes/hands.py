@@ -30,6 +30,7 @@ from starlette.concurrency import run_in_threadpool
 
 from softsig_service import registry as repo
 from softsig_service.api.deps import Ctx, IfMatchRequired, WriteAccess
+from softsig_service.api.responses import Answer, AnswerCache, json_response, model_json
 from softsig_service.api.routes.common import WRITE, problem, read_route, with_etag
 from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page
 from softsig_service.api.schemas import HAND_NAME_PATTERN, HandList, HandOut
@@ -38,7 +39,7 @@ from softsig_service.hands.archive import read_archive
 from softsig_service.hands.assets import check_relative_path
 from softsig_service.hands.manifest import HandManifest, manifest_from_dict
 from softsig_service.hands.xacro_expand import CACHE_DIR
-from softsig_service.services.serialize import to_jsonable, vectors_as_objects
+from softsig_service.services.serialize import api_json
 from softsig_service.services.tasks import inspect_hand
 
 router = APIRouter(prefix="/v1", tags=["hands"])
@@ -76,7 +77,7 @@ def hand_summary(record: repo.HandRecord) -> dict[str, Any]:
 
 def hand_out(record: repo.HandRecord) -> dict[str, Any]:
     """The JSON of :class:`HandOut` for a record."""
-    return {**hand_summary(record), "info": vectors_as_objects(to_jsonable(record.info)), "files": record.files}
+    return {**hand_summary(record), "info": api_json(record.info), "files": record.files}
 
 
 async def _read_limited(upload: UploadFile, limit: int, field: str) -> bytes:
@@ -273,13 +274,26 @@ async def _register(
     **read_route({304: {"description": "If-None-Match matched the current ETag"}}),
     summary="Get a hand",
 )
-def get_hand(ctx: Ctx, hand: HandPath, request: Request, response: Response) -> Any:
+def get_hand(ctx: Ctx, hand: HandPath, request: Request) -> Any:
     """A hand with its model summary; ``ETag`` for ``If-Match`` on updates (``If-None-Match`` gives 304)."""
-    record = repo.get_hand(ctx.registry, hand)
+    stamp = repo.hand_stamp(ctx.registry, hand)
+    if stamp is None:
+        repo.get_hand(ctx.registry, hand)  # HandNotFound, with the registered names (or one registered meanwhile)
+
+    def make() -> tuple[Any, Answer]:
+        record = repo.get_hand(ctx.registry, hand)
+        return repo.stamp_of(record), (record.etag, model_json(HandOut, hand_out(record)))
+
+    etag, body = HAND_ANSWERS.get(stamp, make)
     inm = request.headers.get("if-none-match")
-    if inm is not None and repo.etag_matches(record.etag, inm):
-        return Response(status_code=304, headers={"ETag": record.etag})
-    return hand_out(with_etag(response, record))
+    if inm is not None and repo.etag_matches(etag, inm):
+        return Response(status_code=304, headers={"ETag": etag})
+    return json_response(body, headers={"ETag": etag})
+
+
+HAND_ANSWERS = AnswerCache(4 << 20)
+"""``GET /v1/hands/{hand}``'s answers by the hand's stamp (:func:`softsig_service.registry.hand_stamp`), 4 MiB
+at most."""
 
 
 @router.put(

@@ -14,6 +14,7 @@ import json
 import os
 import threading
 import uuid
+from collections.abc import Callable
 from pathlib import Path as FsPath
 from typing import Annotated, Any
 
@@ -24,6 +25,7 @@ from softsig_service import registry as repo
 from softsig_service.api.context import AppContext
 from softsig_service.api.deps import Ctx
 from softsig_service.api.plan_schemas import PlanIn, PlanList, PlanOut
+from softsig_service.api.responses import Answer, AnswerCache, json_response, model_json
 from softsig_service.api.routes.common import problem, read_route, write_route
 from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page_of
 from softsig_service.api.scene import scene_frames, scene_objects, stored_objects
@@ -32,7 +34,7 @@ from softsig_service.config import Settings
 from softsig_service.errors import HandNotFound, InvalidInput, NotFound
 from softsig_service.objects import TableObject
 from softsig_service.services.plan_image import render_plan_png
-from softsig_service.services.serialize import to_jsonable, vectors_as_objects
+from softsig_service.services.serialize import api_json
 from softsig_service.signatures.capture import CaptureModel
 from softsig_service.signatures.closure_types import Criterion
 
@@ -81,17 +83,20 @@ def _plan_if_ready(ctx: AppContext, body: PlanIn) -> tuple[repo.HandRef, dict[st
     return hand, make_plan(ctx, body, hand)
 
 
-def capture_model(ctx: AppContext, hand: repo.HandRef, obj: TableObject, version: int | None) -> CaptureModel:
+def capture_model(
+    ctx: AppContext, hand: repo.HandRef, obj: TableObject, version: int | None, *, required: bool = True
+) -> CaptureModel | None:
     """The capture model strategy R plans with: signature ``version`` of ``hand``, which must be a capture model of
     an object of the shape, size, mass and friction of ``obj`` (its shape digest) computed on the hand's current
     revision; else the newest such one, found by one indexed query; else the model shipped in the hand's folder
-    for such an object (as the CLI does). :class:`InvalidInput` naming ``capture_version`` when there is none, or
-    only models of older revisions of the hand."""
+    for such an object (as the CLI does); the model's JSON is read and parsed once per process and version.
+    :class:`InvalidInput` naming ``capture_version`` when there is none, or only models of older revisions of the
+    hand; with ``required`` false, None instead when no version was asked for and there is none."""
     from softsig_service.experiments.capture import shipped_capture_for
 
     digest = obj.shape_digest
     key: str
-    source: dict[str, Any] | FsPath  # the stored model's JSON, or the shipped model's file
+    source: Callable[[], dict[str, Any]]  # the model's JSON, read only when this process has not kept it
     if version is not None:
         try:
             rec = repo.get_signature(ctx.registry, hand.name, version)
@@ -108,13 +113,21 @@ def capture_model(ctx: AppContext, hand: repo.HandRef, obj: TableObject, version
                 f"revision {hand.revision} now: POST /v1/hands/{hand.name}/signatures/capture again",
                 field="capture_version", value=version,
             )  # fmt: skip
-        key, source = rec.etag, rec.data
-    else:
+        key, data = rec.etag, rec.data
+        source = lambda: data  # noqa: E731
+    elif (newest := repo.newest_of_object(ctx.registry, hand.name, "capture", digest)) is not None:
+        newest_version, key = newest  # a version's ETag names its content (hand, version, incarnation)
+        source = lambda: repo.get_signature(ctx.registry, hand.name, newest_version).data  # noqa: E731
+    elif (shipped := shipped_capture_for(FsPath(hand.manifest_path).parent, obj)) is not None:
+        key = f"{hand.token}:{shipped.name}:{shipped.stat().st_mtime_ns}"
+        source = lambda: json.loads(shipped.read_text(encoding="utf-8"))  # noqa: E731
+    elif not required:
+        return None
+    else:  # none: which revisions have one says what to do (or one was stored meanwhile)
         found, stale = repo.signature_of_object(ctx.registry, hand.name, "capture", digest)
-        if found is not None:  # a version's ETag names its content (hand, version, incarnation)
-            key, source = found.etag, found.data
-        elif (shipped := shipped_capture_for(FsPath(hand.manifest_path).parent, obj)) is not None:
-            key, source = f"{hand.token}:{shipped.name}:{shipped.stat().st_mtime_ns}", shipped
+        if found is not None:
+            key, found_data = found.etag, found.data
+            source = lambda: found_data  # noqa: E731
         elif stale:
             raise InvalidInput(
                 f"the hand's capture models of this object were computed on its revisions {stale}, not on its "
@@ -128,9 +141,10 @@ def capture_model(ctx: AppContext, hand: repo.HandRef, obj: TableObject, version
             )  # fmt: skip
     with _CAPTURES_LOCK:  # plans run in many threads
         model = _CAPTURES.get(key)
-        if model is None:
-            data = json.loads(source.read_text(encoding="utf-8")) if isinstance(source, FsPath) else source
-            model = _CAPTURES[key] = CaptureModel.from_json_dict(data)
+    if model is None:
+        model = CaptureModel.from_json_dict(source())
+        with _CAPTURES_LOCK:
+            _CAPTURES[key] = model
             while len(_CAPTURES) > CAPTURES_KEPT:
                 del _CAPTURES[next(iter(_CAPTURES))]
     return model
@@ -163,22 +177,15 @@ def make_plan(ctx: AppContext, body: PlanIn, hand: repo.HandRef) -> dict[str, An
 
     obj, obstacles = scene_objects(body.object, body.obstacles, body, stored_objects(ctx))
     frame = output_frame_pose(body.output_frame, scene_frames(body), obj.pose)
-    if body.strategy == "R":
-        capture: CaptureModel | None = capture_model(ctx, hand, obj, body.capture_version)
-    else:  # the grasps' quality: the hand's capture model of the object where it has one
-        try:
-            capture = capture_model(ctx, hand, obj, body.capture_version)
-        except InvalidInput:
-            if body.capture_version is not None:
-                raise
-            capture = None
+    # R plans with the hand's capture model of the object; S and C rate their grasps with it where there is one
+    capture = capture_model(ctx, hand, obj, body.capture_version, required=body.strategy == "R")
     options = body.model_dump(include=set(PLANNER_FIELDS))
     request = PlanRequest(
         hand=hand.manifest_path, obj=obj, capture=capture, hand_revision=hand.token, obstacles=obstacles, **options
     )
     plan = ctx.planner.plan(request)  # thread-safe: per-thread solvers and collision worlds, no lock
     ctx.metrics.plan_seconds.labels(body.strategy).observe(plan.timing.get("total", 0.0))
-    data: dict[str, Any] = vectors_as_objects(to_jsonable(plan.to_json_dict(body.output_frame, frame)))
+    data: dict[str, Any] = api_json(plan.to_json_dict(body.output_frame, frame))
     data["hand_revision"] = hand.revision
     if body.store:
         rec = repo.add_plan(
@@ -234,9 +241,21 @@ def list_plans(
 
 
 @router.get("/plans/{plan_id}", response_model=PlanOut, **read_route(), summary="Get a plan")
-def get_plan(ctx: Ctx, plan_id: PlanId) -> dict[str, Any]:
+def get_plan(ctx: Ctx, plan_id: PlanId) -> Response:
     """A stored plan."""
-    return _plan_out(repo.get_plan(ctx.registry, plan_id))
+    stamp = repo.plan_stamp(ctx.registry, plan_id)
+    if stamp is None:
+        raise NotFound("no such plan", field="plan_id", value=plan_id)
+
+    def make() -> tuple[Any, Answer]:
+        rec = repo.get_plan(ctx.registry, plan_id)
+        return (rec.id, rec.created_at), ("", model_json(PlanOut, _plan_out(rec)))
+
+    return json_response(PLAN_ANSWERS.get((plan_id, stamp), make)[1])
+
+
+PLAN_ANSWERS = AnswerCache(32 << 20)
+"""``GET /v1/plans/{id}``'s answers by ``(id, created_at)`` (a stored plan never changes), 32 MiB at most."""
 
 
 @router.delete(
