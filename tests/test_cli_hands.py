@@ -82,6 +82,12 @@ def test_render_writes_a_png(tmp_path: Path) -> None:
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_render_refuses_an_unknown_cs_method(tmp_path: Path) -> None:
+    res = run("hands", "render", "parallel_gripper", "--out", str(tmp_path / "x.png"), "--cs-method", "nonsense")
+    assert res.returncode == 2 and "cs_method" in res.stderr and "Traceback" not in res.stderr
+    assert not (tmp_path / "x.png").exists()
+
+
 def test_render_without_a_usable_backend_fails_with_a_clear_message(tmp_path: Path) -> None:
     res = run("hands", "render", "parallel_gripper", "--out", str(tmp_path / "x.png"), env={"MUJOCO_GL": "nonsense"})
     assert res.returncode == 2

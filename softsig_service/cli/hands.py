@@ -111,13 +111,26 @@ def hands_render(
     hand: HandArgument,
     out: Annotated[Path, typer.Option("--out", help="PNG to write")],
     size: Annotated[int, typer.Option(help="width and height of each view [px]", min=64, max=2048)] = 480,
+    cs_method: Annotated[
+        str, typer.Option("--cs-method", help="closure signature drawn: ellipsoid | pca | mesh | none")
+    ] = "ellipsoid",
 ) -> None:
-    """Render the hand open and closed side by side (offscreen)."""
+    """Render the hand open and closed side by side (offscreen, white background): the hand frame's axes, the
+    grasp frame when the manifest gives one, and the closure signature's axis (ellipsoid, absolute criterion, as
+    ``softsig signature closure`` computes it; ``--cs-method none`` leaves it out)."""
+    from softsig_service.errors import InvalidInput
     from softsig_service.hands.model import load_hand
-    from softsig_service.hands.render import render_open_closed, save_png
+    from softsig_service.hands.render import hand_closure_signature, render_open_closed, save_png
+    from softsig_service.signatures.closure_types import METHODS
 
     with _errors():
-        image = render_open_closed(load_hand(hand, Settings()), width=size, height=size)
+        if cs_method != "none" and cs_method not in METHODS:
+            raise InvalidInput(
+                "unknown closure-signature method", field="cs_method", value=cs_method, choices=(*METHODS, "none")
+            )
+        the_hand = load_hand(hand, Settings())
+        signature = None if cs_method == "none" else hand_closure_signature(the_hand, cs_method)  # type: ignore[arg-type]
+        image = render_open_closed(the_hand, width=size, height=size, signature=signature)
         save_png(image, out)
         typer.echo(f"wrote {out} ({image.shape[1]}x{image.shape[0]})")
 

@@ -32,7 +32,10 @@ def signature_closure(
         ),
     ] = "absolute",
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
-    plot: Annotated[Path | None, typer.Option("--plot", help="PNG/PDF/SVG of points, ellipsoids and the CS")] = None,
+    plot: Annotated[
+        Path | None,
+        typer.Option("--plot", help="PNG/PDF/SVG: points, ellipsoids and the CS in 3-D and top, front, side views"),
+    ] = None,
 ) -> None:
     """Compute a hand's closure signature (CS) from a simulated closure or from tracked markers.
 

@@ -23,11 +23,9 @@ BOX = builtin_object("box")
 BUILTIN = Path(__file__).resolve().parents[2] / "hands" / "parallel_gripper"
 
 
-@pytest.fixture(scope="module")
-def bracketed(tmp_path_factory: pytest.TempPathFactory) -> str:
-    """The parallel gripper with its flange frame 60 mm behind the description's mount frame, turned pi/2 about z,
-    and the grasp frame back at the description's mount frame."""
-    folder = tmp_path_factory.mktemp("hands") / "gripper_on_bracket"
+def write_gripper_on_bracket(folder: Path) -> str:
+    """Write into ``folder`` the parallel gripper with its flange frame 60 mm behind the description's mount frame,
+    turned pi/2 about z, and the grasp frame back at the description's mount frame; return its manifest's path."""
     shutil.copytree(BUILTIN, folder)
     text = (folder / "hand.toml").read_text()
     text = text.replace('name = "parallel_gripper"', 'name = "gripper_on_bracket"')
@@ -36,6 +34,12 @@ def bracketed(tmp_path_factory: pytest.TempPathFactory) -> str:
                         f"grasp_frame = {{ xyz = [0.0, 0.0, 0.06], rpy = [0.0, 0.0, {-math.pi / 2!r}] }}\n")  # fmt: skip
     (folder / "hand.toml").write_text(text)
     return str(folder / "hand.toml")
+
+
+@pytest.fixture(scope="module")
+def bracketed(tmp_path_factory: pytest.TempPathFactory) -> str:
+    """The gripper on its bracket (``write_gripper_on_bracket``)."""
+    return write_gripper_on_bracket(tmp_path_factory.mktemp("hands") / "gripper_on_bracket")
 
 
 def test_the_signature_and_the_points_are_the_same_in_the_grasp_frame(bracketed: str) -> None:
