@@ -274,17 +274,17 @@ async def _register(
     **read_route({304: {"description": "If-None-Match matched the current ETag"}}),
     summary="Get a hand",
 )
-def get_hand(ctx: Ctx, hand: HandPath, request: Request) -> Any:
+async def get_hand(ctx: Ctx, hand: HandPath, request: Request) -> Any:
     """A hand with its model summary; ``ETag`` for ``If-Match`` on updates (``If-None-Match`` gives 304)."""
-    stamp = repo.hand_stamp(ctx.registry, hand)
-    if stamp is None:
-        repo.get_hand(ctx.registry, hand)  # HandNotFound, with the registered names (or one registered meanwhile)
+    stamp = repo.hand_stamp(ctx.registry, hand)  # one indexed row, on the loop (api/responses.py)
+    if stamp is None:  # HandNotFound, with the registered names (or one registered meanwhile)
+        await run_in_threadpool(repo.get_hand, ctx.registry, hand)
 
     def make() -> tuple[Any, Answer]:
         record = repo.get_hand(ctx.registry, hand)
         return repo.stamp_of(record), (record.etag, model_json(HandOut, hand_out(record)))
 
-    etag, body = HAND_ANSWERS.get(stamp, make)
+    etag, body = await HAND_ANSWERS.aget(stamp, make)
     inm = request.headers.get("if-none-match")
     if inm is not None and repo.etag_matches(etag, inm):
         return Response(status_code=304, headers={"ETag": etag})

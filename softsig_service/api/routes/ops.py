@@ -7,6 +7,7 @@ from prometheus_client import CONTENT_TYPE_LATEST
 from starlette.concurrency import run_in_threadpool
 
 from softsig_service.api.problems import problem_body, problem_response
+from softsig_service.api.responses import json_response, model_json
 from softsig_service.api.routes.common import COMMON
 from softsig_service.api.schemas import Health, Readiness
 
@@ -14,9 +15,13 @@ router = APIRouter(tags=["operations"], responses=COMMON)
 
 
 @router.get("/healthz", response_model=Health, summary="Liveness: the process serves requests")
-async def healthz() -> Health:
+async def healthz() -> Response:
     """Always ``{"status": "ok"}`` while the process can answer."""
-    return Health(status="ok")
+    return json_response(HEALTHY)  # the bytes made once (api/responses.py)
+
+
+HEALTHY = model_json(Health, {"status": "ok"})
+"""``/healthz``'s body."""
 
 
 @router.get(

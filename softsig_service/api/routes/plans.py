@@ -241,9 +241,9 @@ def list_plans(
 
 
 @router.get("/plans/{plan_id}", response_model=PlanOut, **read_route(), summary="Get a plan")
-def get_plan(ctx: Ctx, plan_id: PlanId) -> Response:
+async def get_plan(ctx: Ctx, plan_id: PlanId) -> Response:
     """A stored plan."""
-    stamp = repo.plan_stamp(ctx.registry, plan_id)
+    stamp = repo.plan_stamp(ctx.registry, plan_id)  # one indexed row, on the loop (api/responses.py)
     if stamp is None:
         raise NotFound("no such plan", field="plan_id", value=plan_id)
 
@@ -251,7 +251,7 @@ def get_plan(ctx: Ctx, plan_id: PlanId) -> Response:
         rec = repo.get_plan(ctx.registry, plan_id)
         return (rec.id, rec.created_at), ("", model_json(PlanOut, _plan_out(rec)))
 
-    return json_response(PLAN_ANSWERS.get((plan_id, stamp), make)[1])
+    return json_response((await PLAN_ANSWERS.aget((plan_id, stamp), make))[1])
 
 
 PLAN_ANSWERS = AnswerCache(32 << 20)
