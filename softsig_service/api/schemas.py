@@ -243,6 +243,12 @@ class ValidationIn(SceneFields):
     time_limit: float | None = Field(
         None, gt=0.0, strict=True, description="wall-time cap [s] (at most the service's cap)"
     )
+    keyframes: bool = Field(
+        False, strict=True,
+        description="also render a keyframe strip per trial (the scene at the end of each phase, contact forces "
+        "drawn as arrows; about 0.5 s more per trial): files keyframes/trial_NNN.png, linked from the result's "
+        "keyframes",
+    )  # fmt: skip
 
 
 class ExperimentIn(Strict):

@@ -29,7 +29,8 @@ FRAME_SIZE = (640, 480)
 
 
 class _Recorder:
-    """Renders the scene offscreen (``mujoco.Renderer``) into PNG frames and/or a video writer."""
+    """Renders every frame offscreen (``mujoco.Renderer``) into PNG files (``--all-frames``) and/or a video writer
+    (``--video``)."""
 
     def __init__(self, frames: Path | None, video: Path | None, fps: float) -> None:
         self.frames_dir = frames
@@ -45,8 +46,8 @@ class _Recorder:
                 import imageio_ffmpeg  # noqa: F401  (the encoder imageio needs for .mp4)
             except ImportError:
                 raise InvalidInput(
-                    "--video needs a video encoder: pip install imageio imageio-ffmpeg; or use --frames DIR to "
-                    "write PNG frames",
+                    "--video needs a video encoder: pip install imageio imageio-ffmpeg (the 'video' extra); or use "
+                    "--frames DIR for a keyframe strip per trial",
                     field="video",
                     value=str(video),
                 ) from None
@@ -109,8 +110,20 @@ def validate(
     seed: Annotated[int, typer.Option("--seed", help="seed; trial k uses SeedSequence(seed, spawn_key=(k,))")] = 0,
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
     video: Annotated[Path | None, typer.Option("--video", help="write an MP4 of the trials (needs imageio)")] = None,
-    frames: Annotated[Path | None, typer.Option("--frames", help="write PNG frames into DIR/trial_NNN/")] = None,
-    fps: Annotated[float, typer.Option("--fps", help="frames per second of sim time", min=1.0, max=500.0)] = 30.0,
+    frames: Annotated[
+        Path | None,
+        typer.Option(
+            "--frames",
+            help="write a keyframe strip per trial, DIR/trial_NNN.png (the scene at the end of "
+            "each phase, contact forces drawn)",
+        ),
+    ] = None,
+    all_frames: Annotated[
+        Path | None, typer.Option("--all-frames", help="write every frame as PNG into DIR/trial_NNN/ (slow, large)")
+    ] = None,
+    fps: Annotated[
+        float, typer.Option("--fps", help="frames per second of sim time (--video, --all-frames)", min=1.0, max=500.0)
+    ] = 30.0,
     cs_method: opt.CsMethodOption = "ellipsoid",
     criterion: opt.CriterionOption = "absolute",
     placement: opt.PlacementOption = "open_centre",
@@ -130,8 +143,13 @@ def validate(
         model = opt.read_capture(capture, hand=hand, obj=nominal, strategy=strategy)
         if model is not None:
             options["capture"] = model
-        recorder = _Recorder(frames, video, fps) if (frames is not None or video is not None) else None
-        results = []
+        recorder = _Recorder(all_frames, video, fps) if (all_frames is not None or video is not None) else None
+        keyframes = None
+        if frames is not None:
+            from softsig_service.simulation.keyframes import KeyframeRecorder
+
+            keyframes = KeyframeRecorder()
+        results, strips = [], []
         try:
             for k in range(trials):
                 result = run_trial(
@@ -143,14 +161,20 @@ def validate(
                     sigma_t=sigma_t,
                     on_frame=recorder,
                     frame_period=1.0 / fps,
+                    on_phase=keyframes,
                     plan_options=options,
                 )
                 results.append(result)
                 if recorder is not None:
                     recorder.next_trial()
+                if keyframes is not None and frames is not None:
+                    setting = f"{result.hand} / {nominal.name or nominal.kind} / {strategy}"
+                    strips.append(keyframes.save_trial(frames, k, result, setting))
         finally:
             if recorder is not None:
                 recorder.close()
+            if keyframes is not None:
+                keyframes.close()
         successes = sum(r.success for r in results)
         data: dict[str, Any] = {
             "hand": results[0].hand,
@@ -170,8 +194,12 @@ def validate(
         }
         if video is not None:
             data["video"] = str(video)
-        if frames is not None:
+        if frames is not None and keyframes is not None:
             data["frames"] = str(frames)
+            data["keyframes"] = [str(p) for p in strips]
+            data["keyframe_seconds"] = round(keyframes.seconds, 3)
+        if all_frames is not None:
+            data["all_frames"] = str(all_frames)
         if as_json:
             typer.echo(json.dumps(data, indent=2))
             return
@@ -196,8 +224,11 @@ def validate(
                 lines.append(f"      {diagnosis_summary(r.diagnosis)}")
         if video is not None:
             lines.append(f"  wrote {video}")
-        if frames is not None:
-            lines.append(f"  wrote frames into {frames}")
+        if frames is not None and keyframes is not None:
+            lines.append(f"  wrote {len(strips)} keyframe strip{'s' if len(strips) != 1 else ''} into {frames} "
+                         f"(rendering {keyframes.seconds:.2f} s)")  # fmt: skip
+        if all_frames is not None:
+            lines.append(f"  wrote frames into {all_frames}")
         typer.echo("\n".join(lines))
 
 

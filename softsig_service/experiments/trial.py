@@ -28,7 +28,14 @@ from softsig_service.errors import InvalidInput
 from softsig_service.objects import TableObject
 from softsig_service.planning.planner import Planner
 from softsig_service.planning.request import GraspPlan, PlanRequest
-from softsig_service.simulation.rollout import FrameCallback, Perturbation, RolloutConfig, judge, simulate
+from softsig_service.simulation.rollout import (
+    FrameCallback,
+    Perturbation,
+    PhaseObserver,
+    RolloutConfig,
+    judge,
+    simulate,
+)
 from softsig_service.simulation.scene import build_scene
 
 
@@ -123,6 +130,7 @@ def run_trial(
     plan: GraspPlan | None = None,
     on_frame: FrameCallback | None = None,
     frame_period: float = 1.0 / 30.0,
+    on_phase: PhaseObserver | None = None,
     plan_options: Mapping[str, Any] | None = None,
     perturbation: Perturbation | None = None,
     obstacles: Sequence[TableObject] = (),
@@ -131,7 +139,8 @@ def run_trial(
 
     ``sigma_r`` [rad] and ``sigma_t`` [m] are the standard deviations of the object's yaw and x, y offsets;
     ``seed`` seeds them. ``plan`` skips planning (a plan for the same hand, object and strategy, e.g. to test
-    a moved plan). ``on_frame`` is called every ``frame_period`` [s] of sim time (videos, frames).
+    a moved plan). ``on_frame`` is called every ``frame_period`` [s] of sim time (videos, frames); ``on_phase`` at
+    the start and at the end of each phase (keyframes, :class:`~softsig_service.simulation.rollout.PhaseObserver`).
     ``plan_options`` are further :class:`PlanRequest` fields (``cs_method``, ``cs_criterion``, ``placement``,
     ``capture``...); strategy R plans for ``sigma_r`` and ``sigma_t``. ``perturbation`` moves the simulated object
     by a given offset instead of one drawn from ``seed`` and the sigmas (the capture model's simulations).
@@ -202,7 +211,7 @@ def run_trial(
 
     t0 = time.perf_counter()
     scene = build_scene(hand, obj, settings or planner.settings, obstacles)
-    sim = simulate(scene, pert.apply(obj), approach, lift, cfg, on_frame, frame_period)
+    sim = simulate(scene, pert.apply(obj), approach, lift, cfg, on_frame, frame_period, on_phase)
     t_sim = time.perf_counter() - t0
 
     reason = judge(sim, cfg)

@@ -151,8 +151,10 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
 
     ``params``: ``hand_ref`` (name or manifest path), ``object`` (object JSON in ``base_link``), ``table_height``
     [m], ``obstacles`` (object JSON, optional), ``strategy``, ``sigma_r``,
-    ``sigma_t``, ``trials``, ``seed``, ``settings`` (:func:`model_settings`). Writes ``validation.json`` (every
-    trial's record) and ``outcomes.csv``.
+    ``sigma_t``, ``trials``, ``seed``, ``settings`` (:func:`model_settings`), ``keyframes`` (optional). Writes
+    ``validation.json`` (every trial's record) and ``outcomes.csv``; with ``keyframes``, a keyframe strip per trial
+    (:mod:`softsig_service.simulation.keyframes`), ``keyframes/trial_NNN.png``, listed by URL in the result's
+    ``keyframes``.
     """
     import csv
     import json
@@ -170,14 +172,29 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
     results = []
     meter = Progress(trials)
     ctx.progress(0.0, meter.message())
-    for k in range(trials):
-        result = run_trial(
-            str(params["hand_ref"]), obj, params["strategy"], seed=trial_seed(seed, (), k),
-            sigma_r=float(params["sigma_r"]), sigma_t=float(params["sigma_t"]), settings=settings, obstacles=obstacles,
-        )  # fmt: skip
-        results.append(result)
-        meter.update(k + 1)
-        ctx.progress(meter.fraction, meter.message())
+    keyframes = None
+    if params.get("keyframes"):
+        from softsig_service.simulation.keyframes import KeyframeRecorder
+
+        keyframes = KeyframeRecorder()
+    strips = []
+    try:
+        for k in range(trials):
+            result = run_trial(
+                str(params["hand_ref"]), obj, params["strategy"], seed=trial_seed(seed, (), k),
+                sigma_r=float(params["sigma_r"]), sigma_t=float(params["sigma_t"]), settings=settings,
+                obstacles=obstacles, on_phase=keyframes,
+            )  # fmt: skip
+            results.append(result)
+            if keyframes is not None:
+                setting = f"{params['hand']} / {obj.name or obj.kind} / {params['strategy']}"
+                path = keyframes.save_trial(ctx.out_dir / "keyframes", k, result, setting)
+                strips.append(f"/v1/jobs/{ctx.job_id}/files/keyframes/{path.name}")
+            meter.update(k + 1)
+            ctx.progress(meter.fraction, meter.message())
+    finally:
+        if keyframes is not None:
+            keyframes.close()
     outcomes = [
         {"seed": r.seed, "success": r.success, "reason": r.reason, "lift_height": r.lift_height} for r in results
     ]
@@ -192,6 +209,8 @@ def run_validation(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
         "successes": sum(r.success for r in results),
         "outcomes": outcomes,
     }
+    if keyframes is not None:
+        data["keyframes"] = strips
     ctx.out_dir.mkdir(parents=True, exist_ok=True)
     full = {**data, "details": [to_jsonable(r.to_json_dict()) for r in results]}
     (ctx.out_dir / "validation.json").write_text(json.dumps(full, indent=1) + "\n", encoding="utf-8")

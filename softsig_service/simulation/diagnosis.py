@@ -10,7 +10,7 @@ into one line a person reads ("closure ended with 2 contacts (thumb 0.0 N, index
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import mujoco
@@ -25,19 +25,27 @@ NO_FORCE = 0.05
 """[N] a hand body pressing less than this on the object is reported as touching without load."""
 
 
-def hand_forces(scene: Scene, data: mujoco.MjData) -> dict[str, float]:
-    """Per hand body touching the object (penetrating contacts): the normal force it presses on the object [N]."""
-    out: dict[str, float] = {}
-    f6 = np.zeros(6)
+def object_contacts(scene: Scene, data: mujoco.MjData) -> Iterator[tuple[int, int, bool]]:
+    """The penetrating contacts (distance <= 0) of an object geom with a geom of another class: (contact index,
+    the other geom, whether the object's geom is the contact's ``geom1``)."""
     cls = scene.geom_class
     for i in range(data.ncon):
         con = data.contact[i]
         if con.dist > 0.0:
             continue
         g1, g2 = int(con.geom1), int(con.geom2)
-        if {int(cls[g1]), int(cls[g2])} != {GEOM_OBJECT, GEOM_HAND}:
+        if cls[g1] == cls[g2] or GEOM_OBJECT not in (cls[g1], cls[g2]):
             continue
-        hand_geom = g1 if cls[g1] == GEOM_HAND else g2
+        yield (i, g2, True) if cls[g1] == GEOM_OBJECT else (i, g1, False)
+
+
+def hand_forces(scene: Scene, data: mujoco.MjData) -> dict[str, float]:
+    """Per hand body touching the object (penetrating contacts): the normal force it presses on the object [N]."""
+    out: dict[str, float] = {}
+    f6 = np.zeros(6)
+    for i, hand_geom, _ in object_contacts(scene, data):
+        if scene.geom_class[hand_geom] != GEOM_HAND:
+            continue
         mujoco.mj_contactForce(scene.model, data, i, f6)
         name = scene.model.body(int(scene.model.geom_bodyid[hand_geom])).name.removeprefix(HAND_PREFIX)
         out[name] = out.get(name, 0.0) + abs(float(f6[0]))

@@ -68,9 +68,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import mujoco
 import numpy as np
@@ -163,6 +163,19 @@ class Perturbation:
 
 FrameCallback = Callable[[Scene, mujoco.MjData], None]
 """Called with the scene and its data at the frame rate of a recording (and once at the start)."""
+
+
+class PhaseObserver(Protocol):
+    """Sees a simulated trial at its start and at the end of each phase, where the diagnosis snapshots are taken
+    (the keyframes of :mod:`softsig_service.simulation.keyframes`). A rollout given none calls nothing."""
+
+    def start(self, scene: Scene, data: mujoco.MjData, arm_poses: Sequence[FloatArray]) -> None:
+        """The trial's first state; ``arm_poses``: the arm's joint positions [rad] at the pre-grasp, the grasp and
+        the top of the lift."""
+
+    def phase_end(self, scene: Scene, data: mujoco.MjData, snapshot: Mapping[str, Any]) -> None:
+        """The state at the end of a phase (or at the early stop), with its diagnosis snapshot
+        (:func:`softsig_service.simulation.diagnosis.snapshot`)."""
 
 
 SETTLE_DROP = 0.001
@@ -362,10 +375,14 @@ def simulate(
     cfg: RolloutConfig,
     on_frame: FrameCallback | None,
     frame_period: float,
+    on_phase: PhaseObserver | None = None,
 ) -> SimOutcome:
-    """Step the scene through approach, close, lift and hold; record what the judge needs."""
+    """Step the scene through approach, close, lift and hold; record what the judge needs. ``on_phase`` sees the
+    start and the end of each phase (:class:`PhaseObserver`)."""
     run = Run(scene, obj, approach[0], cfg)
     data = run.data
+    if on_phase is not None:
+        on_phase.start(scene, data, (approach[0], approach[-1], lift[-1]))
     closure = scene.hand.manifest.closure
     c_open, c_closed = scene.closure_open, scene.closure_closed
     next_frame = 0.0
@@ -395,6 +412,8 @@ def simulate(
 
     def seen(name: str) -> None:
         run.out.phases.append(snapshot(scene, data, name))
+        if on_phase is not None:
+            on_phase.phase_end(scene, data, run.out.phases[-1])
 
     ok = phase(cfg.approach_time, lambda t: interp(approach, quintic(t / cfg.approach_time)), open_hand, False)
     if ok:

@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+import io
 from typing import Any
 
+import numpy as np
 import pytest
 from api_helpers import AUTH, assert_problem, wait_for
 from fastapi.testclient import TestClient
+from PIL import Image
+
+from softsig_service.gl_backend import render_unavailable_reason
+from softsig_service.simulation.diagnosis import PHASES
+from softsig_service.simulation.keyframes import PANEL_SIZE, TITLE_HEIGHT
 
 
 def finished(client: TestClient, job_id: str) -> dict[str, Any] | None:
@@ -30,8 +37,32 @@ def test_validation_job(api: TestClient) -> None:
     assert all({"seed", "success", "reason", "lift_height"} <= set(o) for o in result["outcomes"])
     names = {f["name"] for f in api.get(f"/v1/jobs/{job_id}/files").json()["items"]}
     assert {"validation.json", "outcomes.csv"} <= names
+    assert "keyframes" not in result and not any(n.startswith("keyframes/") for n in names), "rendered unasked"
     csv = api.get(f"/v1/jobs/{job_id}/files/outcomes.csv").text
     assert csv.splitlines()[0] == "trial,seed,success,reason,lift_height" and len(csv.splitlines()) == 3
+
+
+@pytest.mark.skipif(render_unavailable_reason() is not None, reason="no OpenGL backend for rendering")
+def test_validation_job_with_keyframes_links_a_strip_per_trial(api: TestClient) -> None:
+    body = {"hand": "parallel_gripper", "object": {"kind": "builtin", "name": "box"}, "strategy": "C", "trials": 2,
+            "keyframes": True}  # fmt: skip
+    r = api.post("/v1/validations", json=body, headers=AUTH)
+    assert r.status_code == 202, r.text
+    job = wait_for(lambda: finished(api, r.json()["id"]), timeout=240)
+    assert job["status"] == "succeeded", job
+    links = job["result"]["keyframes"]
+    assert links == [f"/v1/jobs/{job['id']}/files/keyframes/trial_{k:03d}.png" for k in range(2)]
+    listed = {f["url"]: f for f in api.get(f"/v1/jobs/{job['id']}/files").json()["items"]}
+    width, height = PANEL_SIZE
+    for url, outcome in zip(links, job["result"]["outcomes"], strict=True):
+        assert listed[url]["media_type"] == "image/png"
+        got = api.get(url)
+        assert got.status_code == 200 and got.headers["content-type"] == "image/png"
+        image = np.asarray(Image.open(io.BytesIO(got.content)).convert("RGB"))
+        assert outcome["success"]  # the gripper carries the box: every phase ran, a panel each
+        assert image.shape == (TITLE_HEIGHT + height, len(PHASES) * width, 3)
+        assert image[TITLE_HEIGHT:].std() > 20.0
+    assert_problem(api.post("/v1/validations", json={**body, "keyframes": "yes"}, headers=AUTH), 422, "keyframes")
 
 
 def test_job_submissions_check_input_and_caps(api: TestClient) -> None:

@@ -28,8 +28,9 @@ from softsig_service.api.routes.common import SUBMIT_JOB, problem, read_route, w
 from softsig_service.api.routes.paging import DEFAULT_LIMIT, Limit, Offset, page, page_of
 from softsig_service.api.scene import scene_objects, stored_objects
 from softsig_service.api.schemas import ExperimentIn, JobFiles, JobList, JobOut, ValidationIn
-from softsig_service.errors import HandNotFound, InvalidInput, NotAvailable, NotFound
+from softsig_service.errors import HandNotFound, InvalidInput, NotAvailable, NotFound, RenderUnavailable
 from softsig_service.experiments.campaign_spec import TABLE1_CELLS
+from softsig_service.gl_backend import render_unavailable_reason
 from softsig_service.objects.schema import object_json
 from softsig_service.services.job_files import MEDIA_TYPES, list_files, media_type, resolve_file
 from softsig_service.services.tasks import model_settings
@@ -75,7 +76,8 @@ async def create_validation(ctx: Ctx, body: ValidationIn) -> JSONResponse:
     """Plan the grasp of ``object`` on its nominal pose and simulate ``trials`` rollouts with the object
     perturbed (docs/design.md §7). 202 with the job and ``Location: /v1/jobs/{id}``; its result has ``trials``,
     ``successes`` and ``outcomes`` (one ``{seed, success, reason, lift_height}`` per trial); files
-    ``validation.json`` and ``outcomes.csv``."""
+    ``validation.json`` and ``outcomes.csv``, and with ``keyframes`` one strip per trial,
+    ``keyframes/trial_NNN.png``, whose URLs the result's ``keyframes`` lists."""
     _require_kind(ctx, "validation")
     _check_trials(ctx, body.trials, "the validation")
     hand = await run_in_threadpool(_hand_for_job, ctx, body.hand)
@@ -89,6 +91,12 @@ async def create_validation(ctx: Ctx, body: ValidationIn) -> JSONResponse:
     }  # fmt: skip
     if obstacles:
         params["obstacles"] = [o.to_json() for o in obstacles]
+    if body.keyframes:
+        reason = render_unavailable_reason()
+        if reason is not None:
+            raise RenderUnavailable(f"keyframes need offscreen rendering, which this service lacks: {reason}",
+                                    field="keyframes", value=True)  # fmt: skip
+        params["keyframes"] = True
     job = await ctx.jobs.submit("validation", params, body.time_limit, private=_private(ctx, hand))
     return accepted(job)
 
