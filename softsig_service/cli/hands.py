@@ -120,8 +120,9 @@ def hands_render(
     ``softsig signature closure`` computes it; ``--cs-method none`` leaves it out)."""
     from softsig_service.errors import InvalidInput
     from softsig_service.hands.model import load_hand
-    from softsig_service.hands.render import hand_closure_signature, render_open_closed, save_png
+    from softsig_service.hands.render import render_open_closed, save_png
     from softsig_service.signatures.closure_types import METHODS
+    from softsig_service.simulation.hand_signature import hand_closure_signature
 
     with _errors():
         if cs_method != "none" and cs_method not in METHODS:

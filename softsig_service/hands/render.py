@@ -10,8 +10,9 @@ the same orthographic camera framed so that the hand, in both postures, and the 
 * the grasp frame (the manifest's ``grasp_frame``, ``T_HG``) as three thinner arrows labelled x_G, y_G, z_G when
   it differs from the hand frame (the caption says so when they coincide);
 * the closure signature's axis, when one is given, as an orange double arrow through its anchor (the CS is an
-  axis: both senses are valid). A CS is computed in the grasp frame (:func:`hand_closure_signature`, as
-  ``softsig signature closure`` does) and drawn turned into the hand frame by ``T_HG``.
+  axis: both senses are valid). A CS is computed in the grasp frame
+  (:func:`softsig_service.simulation.hand_signature.hand_closure_signature`, as ``softsig signature closure``
+  does) and drawn turned into the hand frame by ``T_HG``.
 
 The axes are drawn over the rendered hand, so none of them can disappear behind it: a part of an arrow that the
 hand hides (a ray from it toward the camera meets a visible geom, ``mujoco.mj_ray``) is drawn dashed, the rest
@@ -32,7 +33,7 @@ import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 import mujoco
 import numpy as np
@@ -40,9 +41,8 @@ from numpy.typing import NDArray
 
 from softsig_service.errors import RenderUnavailable
 from softsig_service.gl_backend import render_unavailable_reason
-from softsig_service.hands.closure import in_grasp_frame, prepare_data, run_closure, simulate_closure
+from softsig_service.hands.closure import prepare_data, run_closure
 from softsig_service.hands.model import HandModel
-from softsig_service.signatures.closure_types import ClosureSignature, Criterion, Method
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -83,16 +83,18 @@ def draw_hand_frame(scene: mujoco.MjvScene, hand: HandModel, data: mujoco.MjData
         scene.ngeom += 1
 
 
-def hand_closure_signature(
-    hand: HandModel, method: Method = "ellipsoid", criterion: Criterion = "absolute"
-) -> ClosureSignature:
-    """The hand's closure signature as ``softsig signature closure`` computes it: a free-space closure (surface
-    points for the mesh method), expressed in the grasp frame (``T_HG``; the hand frame when the manifest gives no
-    ``grasp_frame``). Axis and anchor [m] are in the grasp frame."""
-    from softsig_service.signatures.closure import compute_closure_signature
+class DrawnSignature(Protocol):
+    """What the render draws of a closure signature (a :class:`~softsig_service.signatures.ClosureSignature`):
+    its unit ``axis`` and ``anchor`` [m] in the grasp frame, and the ``method`` that found it."""
 
-    traj = in_grasp_frame(hand, simulate_closure(hand, surface_points=None if method == "mesh" else 0))
-    return compute_closure_signature(traj, method, criterion=criterion)
+    @property
+    def axis(self) -> Any: ...
+
+    @property
+    def anchor(self) -> Any: ...
+
+    @property
+    def method(self) -> str: ...
 
 
 @dataclass(frozen=True)
@@ -220,13 +222,13 @@ def render_open_closed(
     *,
     width: int = 480,
     height: int = 480,
-    signature: ClosureSignature | None = None,
+    signature: DrawnSignature | None = None,
 ) -> NDArray[np.uint8]:
     """An RGB image (height, 2*width, 3): the hand open (left) and closed (right), gravity off.
 
     ``width`` and ``height`` [px] are one panel's. ``signature`` (axis and anchor in the grasp frame, e.g. from
-    :func:`hand_closure_signature`) adds the CS axis; camera, background and drawn axes are described in the
-    module docstring."""
+    :func:`~softsig_service.simulation.hand_signature.hand_closure_signature`) adds the CS axis; camera,
+    background and drawn axes are described in the module docstring."""
     model = copy.copy(hand.model)
     model.opt.gravity[:] = 0.0
     model.vis.headlight.ambient[:] = 0.5
@@ -271,7 +273,7 @@ def _segments(
     origin: NDArray[np.float64],
     R: NDArray[np.float64],
     length: NDArray[np.float64],
-    signature: ClosureSignature | None,
+    signature: DrawnSignature | None,
 ) -> list[_Segment]:
     """What the overlay draws, world frame: the hand frame's axes, the grasp frame's (when it differs) and the CS
     axis (when given)."""
@@ -317,7 +319,7 @@ def _compose(
     shown: Sequence[Sequence[NDArray[np.bool_]]],
     segments: Sequence[_Segment],
     view: _View,
-    signature: ClosureSignature | None,
+    signature: DrawnSignature | None,
 ) -> NDArray[np.uint8]:
     """The two renders side by side with the overlay (axes, labels, panel names, captions) drawn by matplotlib."""
     from matplotlib import patheffects

@@ -14,7 +14,8 @@ from numpy.typing import NDArray
 from softsig_service.config import Settings
 from softsig_service.gl_backend import render_unavailable_reason
 from softsig_service.hands.model import HandModel, load_hand
-from softsig_service.hands.render import CS_COLOR, hand_closure_signature, render_open_closed
+from softsig_service.hands.render import CS_COLOR, render_open_closed
+from softsig_service.simulation.hand_signature import hand_closure_signature
 from tests.planning.test_grasp_frame import write_gripper_on_bracket
 
 pytestmark = pytest.mark.skipif(render_unavailable_reason() is not None, reason="no OpenGL backend for rendering")
