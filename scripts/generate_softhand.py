@@ -249,7 +249,8 @@ def build() -> str:
   (README.md beside this file cites every number). Do not edit by hand: change the script and re-run it.
   Hand frame = body "mount": origin at the robot flange, +z = out of the palm (the hand sits on a side bracket),
   +x across the palm (thumb side to little-finger side), fingers along -y. Body "palm" is the published palm
-  frame (+x out of the palm face, +y toward the thumb, +z along the fingers); the "wrist" site is its origin.
+  frame (+x out of the palm face, +y toward the thumb, +z along the fingers); the "wrist" site is its origin, the
+  "knuckle" site the middle finger's abduction joint projected on the palm face (placement "knuckle").
   Units: m, rad, kg, N·m/rad. Control: "synergy" u in [0, 1], the motor position (0 open, 1 the fully closed
   free hand); u = g (L_kin(s) + F1 s / Kz) gives the kinematic synergy s exactly in free space (README).
   Free-space transmission: compliance sum R^2/E = {C:.6g} rad/(N·m), tendon force at s = 1: {F1:.6g} N·m.
@@ -280,6 +281,7 @@ def build() -> str:
             pos="{m(0, 0, BRACKET[2] / 2)}" mass="0.12" contype="{PALM_BIT}" conaffinity="1" rgba="0.6 0.6 0.62 1"/>
       <body name="palm" pos="{m(*p)}" quat="{quat(Rm)}">
         <site name="wrist" pos="0 0 0"/>
+        <site name="knuckle" pos="{m(PALM[0][1], FINGERS["middle"][0][1], FINGERS["middle"][0][2])}"/>
         <geom name="palm_geom" type="box" size="{m(*ph)}" pos="{m(*pc)}" mass="{MASS["palm"]:g}"
               contype="{PALM_BIT}" conaffinity="1" rgba="0.2 0.2 0.22 1"/>
         <geom name="wrist_geom" type="cylinder" size="{m(ph[0], base_half)}"

@@ -49,11 +49,12 @@ class PlanIn(SceneFields):
     cs_criterion: ClosureCriterion = Field(
         "absolute", description="ellipsoid CS criterion: absolute [m] (docs/design.md §4) or relative half-width change"
     )
-    placement: Literal["open_centre", "grasp_centre", "per_strategy", "previous"] = Field(
+    placement: Literal["open_centre", "grasp_centre", "knuckle", "per_strategy", "previous"] = Field(
         "open_centre",
         description="hand point put over the object's centre: c_0 of the open hand or c_T of the closed hand "
-        "(both strategies), or per_strategy (S: the open points' bounding-box centre, C: the CS anchor); "
-        "previous: deprecated name of per_strategy",
+        "(both strategies), knuckle (the hand's knuckle point on the palm face, declared in its manifest; both "
+        "strategies: the bounding-box planner's rule), or per_strategy (S: the open points' bounding-box centre, C: "
+        "the CS anchor); previous: deprecated name of per_strategy",
     )
     store: bool = Field(
         True, strict=True, description="store the plan (GET /v1/plans/{id}, image.png); false: id is null"
@@ -249,7 +250,7 @@ class Solver(Out):
     iterations: int | None = None
     cs_method: CsMethod
     cs_criterion: ClosureCriterion
-    placement: Literal["open_centre", "grasp_centre", "per_strategy"]
+    placement: Literal["open_centre", "grasp_centre", "knuckle", "per_strategy"]
 
 
 class PlanOut(Out):

@@ -87,8 +87,8 @@ PlacementOption = Annotated[
     str,
     typer.Option(
         "--placement",
-        help="hand point over the object's centre, the same for S and C: open_centre | grasp_centre; or "
-        "per_strategy (previous: its deprecated name)",
+        help="hand point over the object's centre, the same for S and C: open_centre | grasp_centre | knuckle "
+        "(the manifest's knuckle point); or per_strategy (previous: its deprecated name)",
     ),
 ]
 

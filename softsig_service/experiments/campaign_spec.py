@@ -110,8 +110,8 @@ class CampaignSpec:
     ``(x, y, yaw)`` [m, m, rad].
 
     ``cs_method`` ("ellipsoid" | "pca" | "mesh"), ``criterion`` (the ellipsoid CS's "absolute" | "relative") and
-    ``placement`` ("open_centre" | "grasp_centre" | "per_strategy"; "previous" its deprecated name) are passed to
-    every plan (see :class:`PlanRequest`)."""
+    ``placement`` ("open_centre" | "grasp_centre" | "knuckle" | "per_strategy"; "previous" its deprecated name)
+    are passed to every plan (see :class:`PlanRequest`)."""
 
     hand: str = "pisa_iit_softhand"
     conditions: tuple[Condition, ...] = TABLE1_CONDITIONS

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from softsig_service.errors import SolverError
-from softsig_service.hands.model import HandModel
+from softsig_service.hands.model import HandModel, PointSpec
 from softsig_service.hands.surface import hand_surface_samples
 from softsig_service.hands.trajectory import ClosureTrajectory
 
@@ -25,11 +25,24 @@ def reference_points_world(hand: HandModel, data: mujoco.MjData) -> NDArray[np.f
     """Current world positions [m] of the hand's reference points, shape (N, 3)."""
     out = np.empty((len(hand.points), 3))
     for k, p in enumerate(hand.points):
-        if p.kind == "site":
-            out[k] = data.site_xpos[p.id]
-        else:
-            out[k] = data.xpos[p.id] + data.xmat[p.id].reshape(3, 3) @ np.asarray(p.offset)
+        out[k] = point_world(p, data)
     return out
+
+
+def point_world(p: PointSpec, data: mujoco.MjData) -> NDArray[np.float64]:
+    """The current world position [m] of one manifest point (a site, or a body plus its offset)."""
+    if p.kind == "site":
+        return np.array(data.site_xpos[p.id])
+    return np.asarray(data.xpos[p.id] + data.xmat[p.id].reshape(3, 3) @ np.asarray(p.offset))
+
+
+def open_point(hand: HandModel, p: PointSpec) -> NDArray[np.float64]:
+    """Where the manifest point ``p`` is at the open posture [m], in the grasp frame (the hand frame unless the
+    manifest gives a ``grasp_frame``)."""
+    data = prepare_data(hand, hand.model)
+    in_hand = to_hand_frame(hand, data, point_world(p, data))
+    T_HG = hand.grasp_frame
+    return np.asarray((in_hand - T_HG[:3, 3]) @ T_HG[:3, :3])
 
 
 def to_hand_frame(hand: HandModel, data: mujoco.MjData, points: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -195,6 +195,11 @@ class HandManifest(_Strict):
     )
     xacro_args: dict[str, str | bool | int | float] = Field(default_factory=dict)
     reference_points: list[ReferencePoint] | None = None
+    knuckle: ReferencePoint | None = Field(
+        None,
+        description="the hand's knuckle point on the palm face (a site, or a body and offset), read at the open "
+        "posture: the point placement 'knuckle' puts over the object's centre (the bounding-box planner's rule)",
+    )
     closure: Closure
     simulation: SimulationSettings = Field(default_factory=SimulationSettings)
     physical: PhysicalParameters = Field(default_factory=PhysicalParameters)

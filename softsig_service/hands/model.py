@@ -24,7 +24,13 @@ from numpy.typing import NDArray
 from softsig_service.config import ModelLimits, Settings, default_settings
 from softsig_service.errors import FrameNotFound, HandNotFound, InvalidHandModel, ModelTooLarge, UnsafePath
 from softsig_service.hands.assets import load_urdf_source
-from softsig_service.hands.manifest import HandManifest, PostureClosure, SynergyClosure, load_manifest
+from softsig_service.hands.manifest import (
+    HandManifest,
+    PostureClosure,
+    ReferencePoint,
+    SynergyClosure,
+    load_manifest,
+)
 from softsig_service.hands.mimic import (
     Coupling,
     add_mimic_equalities,
@@ -87,6 +93,8 @@ class HandModel:
     excluded: tuple[ExcludedPair, ...] = ()
     """Body pairs whose contacts are not checked, with the reason for each
     (:mod:`softsig_service.hands.self_collision`)."""
+    knuckle: PointSpec | None = None
+    """The manifest's ``knuckle`` point (placement ``"knuckle"``), or None."""
 
     @property
     def name(self) -> str:
@@ -262,6 +270,7 @@ def _build_hand(
             value=manifest.mount,
         )
     points = _resolve_points(manifest, model, mount, T_MH)
+    knuckle = None if manifest.knuckle is None else _resolve_point(manifest.knuckle, model, mount, T_MH, "knuckle")
     if isinstance(closure, SynergyClosure):
         actuators, open_ctrl, closed_ctrl, posture = synergy_controls(closure, coupled, model)
     else:
@@ -283,6 +292,7 @@ def _build_hand(
         grasp_frame=mount_transform(manifest.grasp_frame),
         mimics=tuple(mimics.values()),
         synergy=tuple(coupled),
+        knuckle=knuckle,
         expanded=src.expanded,
         excluded=excluded,
     )
@@ -340,20 +350,25 @@ def _resolve_points(
                 value=[s.name for s in specs],
             )
         return tuple(specs)
-    out = []
-    for k, p in enumerate(manifest.reference_points):
-        if p.site is not None:
-            sid = _lookup(model, "site", p.site, f"reference_points[{k}].site")
-            out.append(PointSpec(p.name, "site", sid, (0.0, 0.0, 0.0)))
-        else:
-            assert p.body is not None
-            bid = _lookup(model, "body", p.body, f"reference_points[{k}].body")
-            offset = p.offset
-            if bid == mount:  # the mount body's frame is now the hand frame: p_H = R_MH^T (p_M - o_MH)
-                local = T_MH[:3, :3].T @ (np.asarray(p.offset) - T_MH[:3, 3])
-                offset = (float(local[0]), float(local[1]), float(local[2]))
-            out.append(PointSpec(p.name, "body", bid, offset))
-    return tuple(out)
+    return tuple(
+        _resolve_point(p, model, mount, T_MH, f"reference_points[{k}]") for k, p in enumerate(manifest.reference_points)
+    )
+
+
+def _resolve_point(
+    p: ReferencePoint, model: mujoco.MjModel, mount: int, T_MH: NDArray[np.float64], field: str
+) -> PointSpec:
+    """One manifest point (``field`` names it in errors); a ``body`` point on the mount body keeps its offset in
+    the description's frame."""
+    if p.site is not None:
+        return PointSpec(p.name, "site", _lookup(model, "site", p.site, f"{field}.site"), (0.0, 0.0, 0.0))
+    assert p.body is not None
+    bid = _lookup(model, "body", p.body, f"{field}.body")
+    offset = p.offset
+    if bid == mount:  # the mount body's frame is now the hand frame: p_H = R_MH^T (p_M - o_MH)
+        local = T_MH[:3, :3].T @ (np.asarray(p.offset) - T_MH[:3, 3])
+        offset = (float(local[0]), float(local[1]), float(local[2]))
+    return PointSpec(p.name, "body", bid, offset)
 
 
 def _closure_controls(

@@ -17,20 +17,22 @@ from numpy.typing import NDArray
 
 from softsig_service.arm.shapes import HandShape
 from softsig_service.config import Settings
+from softsig_service.errors import InvalidInput
 from softsig_service.geometry.ellipsoid import mvee
-from softsig_service.hands.closure import in_grasp_frame, simulate_closure
+from softsig_service.hands.closure import in_grasp_frame, open_point, simulate_closure
 from softsig_service.hands.collision_shapes import hand_collision_shapes
 from softsig_service.hands.model import SERVO_PREFIX, load_hand
 from softsig_service.signatures.closure import compute_closure_signature
 from softsig_service.signatures.closure_types import ClosureSignature, Criterion
 
-Placement = Literal["open_centre", "grasp_centre", "per_strategy", "previous"]
-PLACEMENTS: tuple[Placement, ...] = ("open_centre", "grasp_centre", "per_strategy", "previous")
+Placement = Literal["open_centre", "grasp_centre", "knuckle", "per_strategy", "previous"]
+PLACEMENTS: tuple[Placement, ...] = ("open_centre", "grasp_centre", "knuckle", "per_strategy", "previous")
 DEPRECATED_PLACEMENTS: dict[str, Placement] = {"previous": "per_strategy"}
 """Old placement names still accepted (for one version), and what they are now called."""
 """Which hand point goes over the object's centre: c_0 of the open hand (both strategies, the default), c_T of
-the closed hand (both strategies), or the previous rule (S: the open reference points' bounding-box centre;
-C: the CS anchor)."""
+the closed hand (both strategies), the hand's knuckle point on the palm face (both strategies; the manifest's
+``knuckle``, the bounding-box planner's rule: its middle-finger knuckle over the box centre), or the previous rule
+(S: the open reference points' bounding-box centre; C: the CS anchor)."""
 DEFAULT_PLACEMENT: Placement = "open_centre"
 
 
@@ -60,6 +62,9 @@ class HandPlanningModel:
     """``T_HG`` (4x4): the grasp frame in the flange frame (the manifest's ``grasp_frame``)."""
     point_names: tuple[str, ...] = ()
     """The reference points' names, in the order of ``points_open``."""
+    knuckle: NDArray[np.float64] | None = None
+    """[m] the manifest's ``knuckle`` point at the open posture, grasp frame (placement ``"knuckle"``); None if the
+    manifest declares none."""
 
     def placement_point(self, strategy: str, placement: Placement) -> NDArray[np.float64]:
         """The hand-frame point [m] the planner puts over the object's centre for ``strategy`` and ``placement``."""
@@ -67,6 +72,15 @@ class HandPlanningModel:
             return self.open_centre
         if placement == "grasp_centre":
             return self.grasp_centre
+        if placement == "knuckle":
+            if self.knuckle is None:
+                raise InvalidInput(
+                    f"placement 'knuckle' needs the hand's knuckle point: hand {self.name!r} declares no 'knuckle' "
+                    "in its manifest",
+                    field="placement",
+                    value=placement,
+                )
+            return self.knuckle
         return self.signature.anchor if strategy == "C" else self.bbox_center
 
 
@@ -175,4 +189,5 @@ def build_planning_model(
         open_centre=mvee(P).center,
         grasp_centre=mvee(traj.positions[-1]).center,
         closure=closure,
+        knuckle=None if hand.knuckle is None else open_point(hand, hand.knuckle),
     )

@@ -191,6 +191,7 @@ def test_bad_plan_bodies_are_4xx_problems_naming_the_field(api: TestClient) -> N
         ({**ok, "current_q": [9, 0, 0, 0, 0, 0]}, "current_q[0]"),
         ({**ok, "approach_distance": 2.0}, "approach_distance"),
         ({**ok, "placement": "middle"}, "placement"),
+        ({**ok, "hand": "parallel_gripper", "placement": "knuckle"}, "placement"),  # declares no knuckle
         ({**ok, "cs_criterion": "biggest"}, "cs_criterion"),
         ({**ok, "object": {**BOX, "pose": {"x": 0.5, "roll": 1}}}, "object.pose.roll"),
         (

@@ -191,7 +191,9 @@ def test_s_and_c_put_the_same_hand_point_over_the_object_and_differ_in_yaw(
 ) -> None:
     obj = builtin_object("box").with_pose(x, y, yaw)
     model = planning_model("pisa_iit_softhand")
-    for placement, point in (("open_centre", model.open_centre), ("grasp_centre", model.grasp_centre)):
+    assert model.knuckle is not None
+    placements = (("open_centre", model.open_centre), ("grasp_centre", model.grasp_centre), ("knuckle", model.knuckle))
+    for placement, point in placements:
         plans = {
             s: planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy=s, placement=placement))  # type: ignore[arg-type]
             for s in ("S", "C")
@@ -220,6 +222,23 @@ def test_the_default_placement_is_the_open_hand_centre_and_previous_keeps_the_ol
     with pytest.raises(InvalidInput) as info:
         PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy="S", placement="middle")  # type: ignore[arg-type]
     assert info.value.field == "placement" and "open_centre" in (info.value.choices or ())
+
+
+def test_the_knuckle_is_the_middle_finger_abduction_joint_on_the_palm_face() -> None:
+    """The SoftHand's knuckle point, from the published palm-frame numbers independently of the MJCF: the middle
+    finger's base (-3.3, 0, 100.699) mm projected along palm +x onto the palm face (palm x = 11.6 mm), with the
+    palm frame at (-4.8, 50.95, 56.8) mm in the hand frame, palm +x = hand +z, +y = hand -x, +z = hand -y."""
+    R = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])  # palm axes as columns, hand frame
+    expected = (R @ np.array([11.6, 0.0, 100.699]) + np.array([-4.8, 50.95, 56.8])) / 1000.0
+    knuckle = planning_model("pisa_iit_softhand").knuckle
+    assert knuckle is not None and np.allclose(knuckle, expected, atol=1e-9)
+
+
+def test_the_knuckle_placement_needs_a_declared_knuckle(planner: Planner) -> None:
+    assert planning_model("parallel_gripper").knuckle is None
+    with pytest.raises(InvalidInput) as info:
+        planner.plan(PlanRequest(hand="parallel_gripper", obj=builtin_object("box"), strategy="S", placement="knuckle"))
+    assert info.value.field == "placement" and "knuckle" in str(info.value)
 
 
 def test_the_cs_criterion_reaches_the_plan(planner: Planner) -> None:
