@@ -24,7 +24,7 @@ grasp and the top of the lift, as close as keeps all of them in view. A trial th
 plan) gets one grey panel saying so.
 
 Cost: only a trial given a recorder renders (``on_phase`` of :func:`softsig_service.simulation.rollout.simulate`);
-one render per phase boundary plus one matplotlib composition per trial (docs/experiment_table1.md states the
+one render per phase boundary plus one matplotlib composition per trial (docs/validation.md states the
 figures).
 """
 

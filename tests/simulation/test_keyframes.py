@@ -30,6 +30,7 @@ from softsig_service.simulation.keyframes import (
     compose_strip,
     geom_corners,
 )
+from softsig_service.simulation.rollout import Perturbation
 from softsig_service.simulation.scene import build_scene
 from softsig_service.simulation.scene_model import Scene
 
@@ -46,10 +47,10 @@ class Recorded:
     strip: NDArray[np.uint8]
 
 
-def record(hand: str, obj: str, strategy: str, seed: int, sigma_r: float = 0.0, sigma_t: float = 0.0) -> Recorded:
+def record(hand: str, obj: str, strategy: str, seed: int, perturbation: Perturbation | None = None) -> Recorded:
     recorder = KeyframeRecorder()
     try:
-        result = run_trial(hand, builtin_object(obj), strategy, seed=seed, sigma_r=sigma_r, sigma_t=sigma_t,  # type: ignore[arg-type]
+        result = run_trial(hand, builtin_object(obj), strategy, seed=seed, perturbation=perturbation,  # type: ignore[arg-type]
                            on_phase=recorder)  # fmt: skip
         panels = list(recorder.panels)
         strip = recorder.compose("test", result.success, result.reason, result.diagnosis)
@@ -138,16 +139,17 @@ def test_the_camera_projects_the_object_where_it_is_rendered(gripper_box: Record
 
 
 def test_an_early_stop_ends_the_strip() -> None:
-    """The SoftHand drops the box (sigma 0.2 rad, 0.02 m, this seed); the trial stops with the box out of reach
-    and the strip's last panel is the stop."""
-    rec = record("pisa_iit_softhand", "box", "S", seed=1641411168, sigma_r=0.2, sigma_t=0.02)
+    """The box moved 15 cm from where the gripper was planned to close: the jaws close on nothing, the trial stops
+    in the lift with the box out of reach, and the strip's last panel is the stop."""
+    rec = record("parallel_gripper", "box", "C", seed=0, perturbation=Perturbation(0.0, 0.15, 0.0))
     phases = [s["phase"] for s in rec.result.diagnosis["phases"]]
-    assert rec.result.reason == "dropped" and phases[-1] == "stopped"
+    assert rec.result.reason == "no_contact" and phases == ["approach", "closure", "stopped"]
     assert [p.snapshot["phase"] for p in rec.panels] == phases
     assert rec.strip.shape == (TITLE_HEIGHT + H, len(phases) * W, 3)
     for k in range(len(phases)):
         assert panel_of(rec.strip, k).std(axis=(0, 1)).min() > 20.0
-    assert not any(a.from_hand for a in rec.panels[-1].arrows)
+    assert not any(a.from_hand for p in rec.panels for a in p.arrows)
+    assert all(red_pixels(panel_of(rec.strip, k)) < 20 for k in range(len(phases)))
 
 
 def test_nothing_simulated_gives_one_grey_panel() -> None:

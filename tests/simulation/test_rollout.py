@@ -236,11 +236,11 @@ def test_validate_video_without_an_encoder_says_so(
 
 
 @pytest.mark.skipif(render_unavailable_reason() is not None, reason="no OpenGL backend for offscreen rendering")
-def test_validate_frames(cli: typer.Typer, tmp_path: Path) -> None:
+def test_validate_all_frames(cli: typer.Typer, tmp_path: Path) -> None:
     import matplotlib.image
 
     res = CliRunner().invoke(cli, ["validate", "--hand", "parallel_gripper", "--object", "box", "--fps", "4",
-                                   "--frames", str(tmp_path / "frames")])  # fmt: skip
+                                   "--all-frames", str(tmp_path / "frames")])  # fmt: skip
     if res.exit_code == 2 and "render" in res.output.lower():
         pytest.skip(f"offscreen rendering unavailable: {res.output}")
     assert res.exit_code == 0, res.output
