@@ -1,13 +1,18 @@
-"""Write hands/pisa_iit_softhand/pisa_iit_softhand.xml from the published Pisa/IIT SoftHand description.
+"""Write the Pisa/IIT SoftHand's MJCF from its published description, for each of its mounts on the UR5 flange:
+hands/pisa_iit_softhand/pisa_iit_softhand.xml (on a side bracket) and
+hands/pisa_iit_softhand_inline/pisa_iit_softhand_inline.xml (in line with the tool axis, through an ATI Gamma
+force-torque sensor, the paper's setup, section III.A).
 
 Every number below is either from the published description (Catalano et al., IJRR 33(5), 2014, and the public
 ROS description "pisa-iit-soft-hand", BSD-3; see hands/pisa_iit_softhand/README.md) or marked *approximate*.
-Run ``python scripts/generate_softhand.py`` after changing a number; the MJCF is committed.
+Run ``python scripts/generate_softhand.py`` after changing a number; the MJCFs are committed.
 
 Frames: the published **palm frame** (right hand: +x out of the palm face, the side the fingers close toward;
 +y toward the thumb and index; +z along the fingers) is body ``palm``. The hand frame (body ``mount``, the robot
-flange; +z out of the palm, +x across the palm from the thumb side to the little finger, fingers along -y) is
-softsig's (docs: docs/design.md §3). Lengths in the tables are millimetres, written to the MJCF in metres.
+flange; on the bracket +z out of the palm, +x across the palm from the thumb side to the little finger, fingers
+along -y) is softsig's (docs: docs/design.md §3). In line, the flange's +z runs along the fingers (palm axes =
+flange axes) and the manifest's ``grasp_frame`` is the bracket's hand frame: the hand is the same in its grasp
+frame on both mounts. Lengths in the tables are millimetres, written to the MJCF in metres.
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 PI = math.pi
-OUT = Path(__file__).resolve().parents[1] / "hands" / "pisa_iit_softhand" / "pisa_iit_softhand.xml"
+HANDS = Path(__file__).resolve().parents[1] / "hands"
 
 # --- published kinematics (palm frame, mm / rad) -------------------------------------------------------
 FINGERS = {  # name: (base position [mm], base rpy [rad], abduction axis, abduction range [rad])
@@ -76,6 +81,9 @@ WIDTH, THICK = 14.0, 18.5  # [mm] phalanx cross-section (across, palm-normal)
 MASS = {"knuckle": 0.009, "roll": 0.0005, "phalanx": 0.005, "tip": 0.010, "palm": 0.228}  # [kg]
 BASE_MASS = 0.2  # [kg] mounting base and clamp stack (*approximate*)
 BRACKET = (70.0, 100.0, 29.0)  # [mm] side bracket on the flange (*approximate*)
+# ATI Gamma F/T sensor (standard model): diameter, height [mm], mass [kg], ATI Industrial Automation's published
+# Gamma specifications; between the flange and the hand's mounting base, on the tool axis (no adapter plates)
+SENSOR = (75.4, 33.3, 0.255)
 BITS = {"thumb": 2, "index": 4, "middle": 8, "ring": 16, "little": 32}
 PALM_BIT = 64
 
@@ -220,7 +228,8 @@ def command_for_synergy(s: float) -> float:
 
 
 def palm_frame_in_hand() -> tuple[np.ndarray, np.ndarray]:
-    """Rotation (palm axes as columns, in the hand frame) and position [mm] of the palm frame in the hand frame.
+    """Rotation (palm axes as columns, in the hand frame) and position [mm] of the palm frame in the bracket
+    mount's hand frame.
 
     Palm +x (out of the palm) = hand +z; palm +y (toward the thumb) = hand -x; palm +z (along the fingers) =
     hand -y. The palm's back rests on the bracket's top; the palm box's centre lies over the flange axis.
@@ -231,8 +240,63 @@ def palm_frame_in_hand() -> tuple[np.ndarray, np.ndarray]:
     return Rm, p
 
 
-def build() -> str:
-    Rm, p = palm_frame_in_hand()
+def palm_frame_inline() -> tuple[np.ndarray, np.ndarray]:
+    """Rotation and position [mm] of the palm frame in the in-line mount's flange frame: palm axes = flange axes,
+    the mounting base's axis (through the palm box's centre in x and y) on the tool axis, its end on the
+    sensor's tool face."""
+    pc = [(lo + hi) / 2 for lo, hi in PALM]
+    return np.eye(3), np.array([-pc[0], -pc[1], SENSOR[1] + MOUNTING_BASE])
+
+
+def grasp_frame_inline() -> tuple[np.ndarray, np.ndarray]:
+    """Rotation and position [mm] of the grasp frame in the in-line mount's flange frame: the bracket mount's
+    hand frame, posed so that the palm frame sits in it as on the bracket (T_FG = T_F,palm T_H,palm^-1)."""
+    Rh, ph = palm_frame_in_hand()
+    Rf, pf = palm_frame_inline()
+    R = Rf @ Rh.T
+    return R, pf - R @ ph
+
+
+def rpy_of(R: np.ndarray) -> tuple[float, float, float]:
+    """URDF roll-pitch-yaw [rad] of a rotation matrix (R = Rz(y) Ry(p) Rx(r)), away from pitch = ±pi/2."""
+    return (math.atan2(R[2, 1], R[2, 2]), math.asin(-R[2, 0]), math.atan2(R[1, 0], R[0, 0]))
+
+
+MODEL_NAMES = {"bracket": "pisa_iit_softhand", "inline": "pisa_iit_softhand_inline"}
+
+
+def mount_geom(mount: str) -> str:
+    """The geom between the flange and the hand: the side bracket, or the F/T sensor on the tool axis."""
+    if mount == "bracket":
+        return (
+            f'      <geom name="bracket_geom" type="box" size="{m(BRACKET[0] / 2, BRACKET[1] / 2, BRACKET[2] / 2)}"\n'
+            f'            pos="{m(0, 0, BRACKET[2] / 2)}" mass="0.12" contype="{PALM_BIT}" conaffinity="1" '
+            'rgba="0.6 0.6 0.62 1"/>'
+        )
+    return (
+        f'      <geom name="sensor_geom" type="cylinder" size="{m(SENSOR[0] / 2, SENSOR[1] / 2)}"\n'
+        f'            pos="{m(0, 0, SENSOR[1] / 2)}" mass="{SENSOR[2]:g}" contype="{PALM_BIT}" conaffinity="1" '
+        'rgba="0.55 0.57 0.6 1"/>'
+    )
+
+
+def frame_comment(mount: str) -> str:
+    """The MJCF header's lines on the hand frame."""
+    if mount == "bracket":
+        return (
+            '  Hand frame = body "mount": origin at the robot flange, +z = out of the palm (the hand sits on a side '
+            "bracket),\n  +x across the palm (thumb side to little-finger side), fingers along -y."
+        )
+    return (
+        '  Flange frame = body "mount": origin at the robot flange, +z along the tool axis and the fingers (an ATI '
+        "Gamma\n  sensor, then the hand's mounting base on the axis); the grasp frame (hand.toml) is +z out of the "
+        "palm.\n "
+    )
+
+
+def build(mount: str = "bracket") -> str:
+    """The MJCF of the hand on ``mount`` ("bracket" | "inline")."""
+    Rm, p = palm_frame_in_hand() if mount == "bracket" else palm_frame_inline()
     C, g, kp, frange = transmission()
     pc = [(lo + hi) / 2 for lo, hi in PALM]
     ph = [(hi - lo) / 2 for lo, hi in PALM]
@@ -247,15 +311,14 @@ def build() -> str:
     return f"""<!--
   Pisa/IIT SoftHand for softsig, generated by scripts/generate_softhand.py from the published description
   (README.md beside this file cites every number). Do not edit by hand: change the script and re-run it.
-  Hand frame = body "mount": origin at the robot flange, +z = out of the palm (the hand sits on a side bracket),
-  +x across the palm (thumb side to little-finger side), fingers along -y. Body "palm" is the published palm
+{frame_comment(mount)} Body "palm" is the published palm
   frame (+x out of the palm face, +y toward the thumb, +z along the fingers); the "wrist" site is its origin, the
   "knuckle" site the middle finger's abduction joint projected on the palm face (placement "knuckle").
   Units: m, rad, kg, N·m/rad. Control: "synergy" u in [0, 1], the motor position (0 open, 1 the fully closed
   free hand); u = g (L_kin(s) + F1 s / Kz) gives the kinematic synergy s exactly in free space (README).
   Free-space transmission: compliance sum R^2/E = {C:.6g} rad/(N·m), tendon force at s = 1: {F1:.6g} N·m.
 -->
-<mujoco model="pisa_iit_softhand">
+<mujoco model="{MODEL_NAMES[mount]}">
   <compiler angle="radian" autolimits="true"/>
   <option timestep="0.002" integrator="implicitfast"/>
 
@@ -277,8 +340,7 @@ def build() -> str:
 
   <worldbody>
     <body name="mount" childclass="softhand">
-      <geom name="bracket_geom" type="box" size="{m(BRACKET[0] / 2, BRACKET[1] / 2, BRACKET[2] / 2)}"
-            pos="{m(0, 0, BRACKET[2] / 2)}" mass="0.12" contype="{PALM_BIT}" conaffinity="1" rgba="0.6 0.6 0.62 1"/>
+{mount_geom(mount)}
       <body name="palm" pos="{m(*p)}" quat="{quat(Rm)}">
         <site name="wrist" pos="0 0 0"/>
         <site name="knuckle" pos="{m(PALM[0][1], FINGERS["middle"][0][1], FINGERS["middle"][0][2])}"/>
@@ -315,8 +377,14 @@ def build() -> str:
 
 
 if __name__ == "__main__":
-    OUT.write_text(build())
     C, g, kp, fr = transmission()
-    print(f"wrote {OUT}: C = {C:.4f} rad/(N·m), gear = {g:.6g}, kp = {kp:.6g}, force range = {fr:.6g}")
+    for mount, name in MODEL_NAMES.items():
+        out = HANDS / name / f"{name}.xml"
+        out.write_text(build(mount))
+        print(f"wrote {out}")
+    print(f"C = {C:.4f} rad/(N·m), gear = {g:.6g}, kp = {kp:.6g}, force range = {fr:.6g}")
+    R_FG, t_FG = grasp_frame_inline()
+    print(f"in line: grasp_frame = {{ xyz = [{t_FG[0] / 1000:.6g}, {t_FG[1] / 1000:.6g}, {t_FG[2] / 1000:.6g}], "
+          f"rpy = [{', '.join(f'{a!r}' for a in rpy_of(R_FG))}] }}")  # fmt: skip
     for s in (0.25, 0.5, 0.75, 1.0):
         print(f"s = {s}: u = {command_for_synergy(s):.6f}")
