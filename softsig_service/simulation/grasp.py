@@ -74,7 +74,8 @@ def grasp_object(
         obj: the object (a :class:`TableObject`, a built-in name or a JSON spec); its table pose is ignored.
         center: the object's centre [m] in the hand frame; None = the automatic rule (module docstring).
         orientation: the object's orientation in the hand frame, quaternion wxyz; None =
-            :data:`TOP_GRASP_ORIENTATION`.
+            :data:`TOP_GRASP_ORIENTATION` in the grasp frame (the hand frame's, for a hand whose manifest gives no
+            ``grasp_frame``).
         settings: grasp settings.
 
     Raises:
@@ -85,7 +86,11 @@ def grasp_object(
     """
     settings = settings or GraspSettings()
     the_obj = resolve_object(obj)
-    quat = quat_normalize(orientation if orientation is not None else TOP_GRASP_ORIENTATION, "orientation")
+    R_HG = np.asarray(hand.grasp_frame, dtype=np.float64)[:3, :3]
+    if orientation is None:  # a top grasp in the grasp frame, expressed in the hand frame
+        quat = matrix_to_quat(R_HG @ quat_to_matrix(TOP_GRASP_ORIENTATION))
+    else:
+        quat = quat_normalize(orientation, "orientation")
     explicit = center is not None
     if explicit:
         c = np.asarray(center, dtype=np.float64).reshape(-1)
@@ -122,7 +127,7 @@ def grasp_object(
         placement = "explicit"
     else:
         target, _ = placement_target(hand, duration=settings.duration)
-        start = _search_free(model, data, geom, put, target, settings)
+        start = _search_free(model, data, geom, put, target, R_HG[:, 2], settings)
         placement = "auto"
     put(start)
     mujoco.mj_forward(model, data)
@@ -226,18 +231,20 @@ def _search_free(
     geom: int,
     put: Any,
     target: FloatArray,
+    approach: FloatArray,
     settings: GraspSettings,
 ) -> FloatArray:
-    """The first centre ``target + t e_z`` (t = 0, step, 2 step...) where the object clears the open hand."""
+    """The first centre ``target + t a`` (t = 0, step, 2 step...; ``a`` the grasp frame's +z in the hand frame,
+    out of the palm) where the object clears the open hand."""
     n = math.floor(settings.search_distance / settings.search_step) + 1
-    ez = np.array([0.0, 0.0, 1.0])
+    ez = np.asarray(approach, dtype=np.float64)
     for k in range(n):
         c = target + k * settings.search_step * ez
         put(c)
         if not _overlap(model, data, geom, settings.clearance):
             return c
     raise SolverError(
-        "no collision-free placement of the object along the hand's +z from the target",
+        "no collision-free placement of the object along the grasp frame's +z from the target",
         field="center",
         value=[float(x) for x in target],
     )

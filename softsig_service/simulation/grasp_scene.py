@@ -14,11 +14,13 @@ ramp) gives the open and closed positions of the reference points that move by m
 positions — where the fingers converge in free space, so every finger closing toward it meets the object (the
 midpoint of the open and closed centroids, tried first, leaves the object above the fingers of the palm-facing
 hands, which then flick it away). The object is centred there and, if it overlaps the
-open hand, pushed along the hand's +z (the approach direction, docs/design.md §3: out of the palm, toward the object) in
+open hand, pushed along the grasp frame's +z (the approach direction, docs/design.md §3: out of the palm, toward the
+object; the hand frame's +z for a hand whose manifest gives no ``grasp_frame``) in
 steps of :attr:`GraspSettings.search_step` until it clears the open hand by :attr:`GraspSettings.clearance`.
 An explicit ``center`` [m] (hand frame) is used as given, and must not overlap the open hand. The object's
-orientation in the hand frame defaults to :data:`TOP_GRASP_ORIENTATION` (a top grasp: the object's z up = hand
--z, its x (major axis) along hand x, so its y (the narrow side of a box) lies along the hand's closing y).
+orientation defaults to :data:`TOP_GRASP_ORIENTATION` in the grasp frame (a top grasp: the object's z up = grasp
+-z, its x (major axis) along grasp x, so its y (the narrow side of a box) lies along the hand's closing y),
+expressed in the hand frame.
 """
 
 from __future__ import annotations

@@ -83,21 +83,22 @@ def find_power_grasp(
 
     ``options`` are those of :func:`grasp_object` (:class:`GraspOptions`). With an explicit ``center`` this is
     :func:`grasp_object`. Otherwise the automatic placement is tried first; if the hand does not hold the object
-    alone there, the placement is shifted in the palm plane by
-    :data:`POWER_GRASP_OFFSETS` (each raised along +z until it clears the open hand) and the first held grasp
-    is returned. If none holds, the automatic (not held) grasp is returned and says so (``held`` False).
+    alone there, the placement is shifted in the palm plane (the grasp frame's x and y) by
+    :data:`POWER_GRASP_OFFSETS` (each raised along the grasp frame's +z until it clears the open hand) and the first
+    held grasp is returned. If none holds, the automatic (not held) grasp is returned and says so (``held`` False).
     """
     first = grasp_object(hand, obj, **options)
     if options.get("center") is not None or first.held:
         return first
     step = (options.get("settings") or GraspSettings()).search_step
+    R_HG = np.asarray(hand.grasp_frame, dtype=np.float64)[:3, :3]
     for dx, dy in POWER_GRASP_OFFSETS:
-        c = first.initial_center + np.array([dx, dy, 0.0])
+        c = first.initial_center + R_HG @ np.array([dx, dy, 0.0])
         for _ in range(MAX_LIFT_STEPS):
             try:
                 grasp = grasp_object(hand, obj, **{**options, "center": c})
             except InvalidInput:
-                c = c + np.array([0.0, 0.0, 4 * step])  # overlaps the open hand: move out of the palm
+                c = c + R_HG[:, 2] * (4 * step)  # overlaps the open hand: move out of the palm
                 continue
             if grasp.held:
                 return grasp

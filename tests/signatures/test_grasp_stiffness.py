@@ -81,6 +81,19 @@ def test_every_hand_finds_a_power_grasp_of_the_apple(apple_signatures: dict[str,
     assert {h for h, ss in apple_signatures.items() if ss.parameters["grasp"]["held"]} == set(HANDS)
 
 
+def test_the_softhands_stiffness_is_the_same_on_either_mount(apple_signatures: dict[str, StiffnessSignature]) -> None:
+    """The in-line SoftHand is the bracket's hand on another flange (the same hand in its grasp frame): its
+    translational stiffness, rotated into the grasp frame, matches the bracket's (placement discretised in 1 mm
+    steps along another axis, hence a tolerance)."""
+    Ks = {}
+    for name in ("pisa_iit_softhand", "pisa_iit_softhand_inline"):
+        R = load_hand(name).grasp_frame[:3, :3]
+        Ks[name] = R.T @ apple_signatures[name].K[:3, :3] @ R
+    a, b = Ks["pisa_iit_softhand"], Ks["pisa_iit_softhand_inline"]
+    assert np.linalg.norm(a - b) <= 0.15 * np.linalg.norm(a)
+    assert np.allclose(np.linalg.eigvalsh(a), np.linalg.eigvalsh(b), rtol=0.15)
+
+
 @pytest.mark.parametrize("hand", ["pisa_iit_softhand", "rbo_hand2", "sdm_hand", "parallel_gripper"])
 def test_every_hand_holds_the_box_with_positive_break_forces(hand: str) -> None:
     ss = compute_stiffness_signature(load_hand(hand), "box", directions=TEST_DIRECTIONS)
