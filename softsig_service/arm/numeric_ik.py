@@ -24,13 +24,18 @@ _POLISHED = 1e-3
 def lm_error(
     model: pin.Model, data: pin.Data, frame_id: int, target: pin.SE3, q: FloatArray
 ) -> tuple[pin.SE3, FloatArray, float, float, float]:
-    """(``T_fk(q)^-1 T_target``, its log6 ``(6,)``, position error [m], rotation error [rad], squared error)."""
+    """(``T_fk(q)^-1 T_target``, its log6 ``(6,)``, position error [m], rotation error [rad], squared error).
+
+    The errors are sums of scalar squares (as in :func:`settled`, so both report the same numbers to the bit);
+    numpy's dot products cost more than the forward kinematics on 3-vectors."""
     pin.forwardKinematics(model, data, q)
     iMd = pin.updateFramePlacement(model, data, frame_id).actInv(target)
     e = np.asarray(pin.log6(iMd).vector)
-    t = np.asarray(iMd.translation)
-    w = e[3:]
-    return iMd, e, math.sqrt(float(t @ t)), math.sqrt(float(w @ w)), float(e @ e)
+    v0, v1, v2, w0, w1, w2 = e.tolist()
+    t0, t1, t2 = iMd.translation.tolist()
+    pe = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+    re = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    return iMd, e, pe, re, v0 * v0 + v1 * v1 + v2 * v2 + w0 * w0 + w1 * w1 + w2 * w2
 
 
 def settled(
@@ -38,9 +43,16 @@ def settled(
 ) -> tuple[float, float] | None:
     """(position error [m], rotation error [rad]) of ``q`` [rad] when :func:`levenberg_marquardt` would return it
     unchanged after 0 iterations (within ``_POLISHED`` of the tolerances ``tol_p`` [m], ``tol_r`` [rad]); else
-    None. One forward kinematics."""
-    _, _, pe, re, _ = lm_error(model, data, frame_id, target, q)
-    return (pe, re) if pe <= _POLISHED * tol_p and re <= _POLISHED * tol_r else None
+    None. One forward kinematics; the errors are :func:`lm_error`'s, computed the same way."""
+    pin.forwardKinematics(model, data, q)
+    iMd = pin.updateFramePlacement(model, data, frame_id).actInv(target)
+    t0, t1, t2 = iMd.translation.tolist()
+    pe = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+    if pe > _POLISHED * tol_p:
+        return None
+    _, _, _, w0, w1, w2 = pin.log6(iMd).vector.tolist()
+    re = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    return (pe, re) if re <= _POLISHED * tol_r else None
 
 
 def levenberg_marquardt(

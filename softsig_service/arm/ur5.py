@@ -13,7 +13,10 @@ Inverse kinematics (:meth:`UR5.solve_ik`) is a damped least-squares (Levenbergâ€
 SE(3) log error ``log6(T_fk^-1 T_target)`` with the frame Jacobian in the LOCAL frame, restarted from several
 seeds; by default the seeds are the closed-form UR branches (:class:`~softsig_service.arm.ur_ik.URParameters`,
 DH lengths read off the model and checked against it): an exact branch is accepted after one forward-kinematics
-check, and the numeric iteration (:mod:`softsig_service.arm.numeric_ik`) runs only where no branch is exact.
+check, and the numeric iteration (:mod:`softsig_service.arm.numeric_ik`) runs only where no branch is exact. The
+common call (a warm start, not exhaustive) is scalar Python throughout: the nearest branch found by a best-first
+search over the closed form (:meth:`~softsig_service.arm.ur_ik.URParameters.nearest_branch`), one Pinocchio
+forward kinematics to confirm it, no numpy on the way (within 2x of a compiled closed-form solver's time).
 An unreachable target is a result with ``success=False`` and ``reason="unreachable"``, never an exception;
 malformed input (NaN, wrong shape, not a rigid transform) raises :class:`~softsig_service.errors.InvalidInput`.
 
@@ -39,7 +42,7 @@ from softsig_service.arm.numeric_ik import levenberg_marquardt, settled
 from softsig_service.arm.robots_dir import SRDF_RELATIVE, URDF_RELATIVE, find_robots_dir
 from softsig_service.arm.ur_ik import URParameters, ur_parameters
 from softsig_service.errors import FrameNotFound, InvalidInput
-from softsig_service.geometry.checks import as_finite_array
+from softsig_service.geometry.checks import ORTHONORMAL_TOL, as_finite_array
 from softsig_service.geometry.transforms import check_transform
 
 FloatArray = NDArray[np.float64]
@@ -84,6 +87,35 @@ class IKOptions(TypedDict, total=False):
 
 _SOLUTION_DEDUP = 1e-4
 """Two IK solutions closer than this in every joint [rad] are the same solution."""
+_FAST_ORTHONORMAL = 0.5 * ORTHONORMAL_TOL
+"""A rotation this close to orthonormal with det 1 passes :func:`_checked_target` without numpy; one farther off
+(or anything unusual) goes through :func:`~softsig_service.geometry.transforms.check_transform`, which decides."""
+
+
+def _checked_target(target: ArrayLike) -> FloatArray:
+    """``target`` as :func:`~softsig_service.geometry.transforms.check_transform` returns it (a rigid 4x4 float
+    transform, [m]) or its :class:`InvalidInput`, field ``target``.
+
+    A float64 4x4 array with the exact last row ``0 0 0 1``, a finite translation and a rotation within half of
+    ``check_transform``'s tolerances is accepted by scalar arithmetic (so ``check_transform`` would accept it too,
+    and return the same array); everything else is left to ``check_transform``.
+    """
+    if type(target) is np.ndarray and target.dtype == np.float64 and target.shape == (4, 4):
+        (a, b, c, px), (d, e, f, py), (g, h, i, pz), last = target.tolist()
+        tol = _FAST_ORTHONORMAL
+        if (
+            last == [0.0, 0.0, 0.0, 1.0]
+            and math.isfinite(px + py + pz)
+            and abs(a * a + d * d + g * g - 1.0) <= tol
+            and abs(b * b + e * e + h * h - 1.0) <= tol
+            and abs(c * c + f * f + i * i - 1.0) <= tol
+            and abs(a * b + d * e + g * h) <= tol
+            and abs(a * c + d * f + g * i) <= tol
+            and abs(b * c + e * f + h * i) <= tol
+            and abs(a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) - 1.0) <= tol
+        ):
+            return target
+    return check_transform(target, field="target")
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -148,10 +180,13 @@ class UR5:
         self.effort_limit: FloatArray = np.array(self.model.effortLimit, dtype=np.float64)
         for arr in (self.lower, self.upper, self.velocity_limit, self.effort_limit):
             arr.setflags(write=False)
+        self._lower_list: list[float] = self.lower.tolist()
+        self._upper_list: list[float] = self.upper.tolist()
         if not self.model.existFrame(FLANGE_FRAME):
             raise RuntimeError(f"frame {FLANGE_FRAME!r} missing from {self.urdf_path}")
         self.flange_frame_id = int(self.model.getFrameId(FLANGE_FRAME))
         self.reach = self._reach_bound()
+        self._reach_centre: list[float] = self.reach[0].tolist()
         self._local = threading.local()
         self.ur_parameters: URParameters | None = ur_parameters(self.model, self.data, self.flange_frame_id)
         """DH lengths for the closed-form seeds (None if the model is not a UR layout)."""
@@ -180,6 +215,9 @@ class UR5:
 
     def check_q(self, q: ArrayLike, field: str = "q") -> FloatArray:
         """``q`` as a finite ``(6,)`` float array [rad], or :class:`InvalidInput` naming ``field``."""
+        # a float64 (6,) array with a finite sum has only finite entries: returned as as_finite_array would
+        if type(q) is np.ndarray and q.dtype == np.float64 and q.shape == (self.nq,) and math.isfinite(sum(q.tolist())):
+            return q
         return as_finite_array(q, (self.nq,), field)
 
     def within_limits(self, q: ArrayLike, tol: float = 1e-9) -> bool:
@@ -305,10 +343,12 @@ class UR5:
         ``success=False`` with ``reason="unreachable"`` and the best attempt in ``q``. Raises
         :class:`InvalidInput` for a malformed target or ``current_q``.
         """
-        T = check_transform(target, field="target")
+        T = _checked_target(target)
         ref = None if current_q is None else self.check_q(current_q, "current_q")
         if seeds < 0 or options.get("max_iterations", 1) < 1:
             raise InvalidInput("seeds must be >= 0 and max_iterations >= 1", field="seeds", value=seeds)
+        if not extra_seeds:
+            return self.solve_ik_unchecked(T, ref, seeds, **options)
         extra = [self.check_q(x, f"extra_seeds[{i}]") for i, x in enumerate(extra_seeds)]
         return self.solve_ik_unchecked(T, ref, seeds, extra_seeds=extra, **options)
 
@@ -328,15 +368,32 @@ class UR5:
     ) -> IKResult:
         """:meth:`solve_ik` for callers inside the service that pass already checked values: ``T`` a rigid 4x4
         float transform ``T_world_tool0`` [m], ``current_q`` and ``extra_seeds`` finite ``(6,)`` float arrays
-        [rad], ``seeds >= 0``, ``max_iterations >= 1``. Nothing is validated again."""
-        M = pin.SE3(T[:3, :3].copy(), T[:3, 3].copy())
-        reference = np.array(HOME_Q) if current_q is None else current_q
+        [rad], ``seeds >= 0``, ``max_iterations >= 1``. Nothing is validated again.
 
-        centre, radius = self.reach
-        if math.dist(T[:3, 3].tolist(), centre.tolist()) > radius + 1e-6:
+        The common call (``analytic``, not ``exhaustive``) first takes the closed-form branch nearest the
+        reference (:meth:`~softsig_service.arm.ur_ik.URParameters.nearest_branch`: the one the seed loop would
+        try first) and returns it after one forward kinematics when it is exact to within 1e-3 of the tolerances
+        (:func:`~softsig_service.arm.numeric_ik.settled`: what the seed loop would accept after 0 iterations);
+        anything else (no branch within the limits, a branch that is not exact, e.g. near a singularity) goes
+        through the seed loop below, as before."""
+        rows = T.tolist()
+        reference = np.array(HOME_Q) if current_q is None else current_q
+        if math.dist((rows[0][3], rows[1][3], rows[2][3]), self._reach_centre) > self.reach[1] + 1e-6:
             q_best = reference.copy()
             pe, re = self.pose_error(self._fk(q_best), T)
             return IKResult(False, q_best, pe, re, 0, 0, "unreachable")
+        M = pin.SE3(T)
+        params = self.ur_parameters
+        if analytic and params is not None and not exhaustive:
+            # the nearest closed-form branch, accepted after one forward kinematics when it is exact
+            near = params.nearest_branch(rows, reference.tolist(), self._lower_list, self._upper_list)
+            if near is not None:
+                q_near = np.array(near)
+                exact = settled(
+                    self.model, self.data, self.flange_frame_id, M, q_near, position_tolerance, rotation_tolerance
+                )
+                if exact is not None:
+                    return IKResult(True, q_near, exact[0], exact[1], 0, 1, None, (q_near,))
 
         solutions: list[tuple[float, FloatArray, float, float]] = []
         best_fail: list[tuple[float, FloatArray, float, float]] = []
@@ -377,12 +434,8 @@ class UR5:
             wrapped, valid = self._wrap_rows(branches, reference)
             wrapped = wrapped[valid]
             d = wrapped - reference
+            # (not exhaustive, the shortcut above found the nearest branch not exact: run() polishes it, then the next)
             order = np.argsort(np.sqrt((d * d).sum(axis=1)), kind="stable").tolist()
-            if order and not exhaustive:  # the common case: the nearest branch is exact, as run() would find
-                q_near = wrapped[order[0]].copy()
-                exact = settled(model, self.data, fid, M, q_near, position_tolerance, rotation_tolerance)
-                if exact is not None:
-                    return IKResult(True, q_near, exact[0], exact[1], 0, 1, None, (q_near,))
             for i in order:
                 if run(wrapped[i], prewrapped=True) and not exhaustive:
                     break

@@ -4,12 +4,14 @@ Frames and units: ``base_link`` of the URDF is the DH base frame turned by pi ab
 Poses are 4x4 homogeneous transforms ``T_base_link_tool0`` with positions in [m]; joint positions in [rad].
 
 The eight branches (shoulder left/right x wrist up/down x elbow up/down) come in the order shoulder, wrist,
-elbow; each is exact up to rounding, so a numeric solver only has to confirm it.
+elbow; each is exact up to rounding, so a numeric solver only has to confirm it. :meth:`URParameters.nearest_branch`
+finds the one nearest a reference configuration, wrapped into the joint limits, without working out the others.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,6 +27,23 @@ _ARGUMENT_SLACK = 1e-6
 """A trigonometric argument outside [-1, 1] by more than this drops its branch (closer: clamped)."""
 _WRIST_SINGULAR = 1e-10
 """Below this |sin q5| the wrist is singular and q6 is free."""
+_PI = math.pi
+_TWO_PI = 2.0 * math.pi
+_PRUNE = 1.0 + 1e-9
+"""A partial squared distance above ``_PRUNE`` times the best full one cannot win, whatever the rounding."""
+
+
+def wrap_joint(q: float, reference: float, lower: float, upper: float) -> float | None:
+    """A closed-form joint value ``q`` [rad] reduced into [-pi, pi) as :meth:`URParameters.ik_array` reduces it,
+    then shifted by a multiple of 2 pi to its value within ``[lower, upper]`` [rad] closest to ``reference``
+    [rad], exactly as ``UR5._wrap_rows`` does (the same float operations); None when no value fits the limits."""
+    q = (q + _PI) % _TWO_PI - _PI
+    k_lo = math.ceil((lower - q) / _TWO_PI - 1e-12)
+    k_hi = math.floor((upper - q) / _TWO_PI + 1e-12)
+    if k_lo > k_hi:
+        return None
+    k = min(max(round((reference - q) / _TWO_PI), k_lo), k_hi)
+    return min(max(q + k * _TWO_PI, lower), upper)
 
 
 def _dh_matrix(theta: float, d: float, a: float, alpha: float) -> FloatArray:
@@ -118,6 +137,157 @@ class URParameters:
                     out.append((q1, q2, q3, q234 - q2 - q3, q5, q6))
         sol = np.array(out, dtype=np.float64).reshape(-1, 6)
         return np.asarray(np.remainder(sol + math.pi, 2.0 * math.pi) - math.pi, dtype=np.float64)
+
+    def nearest_branch(
+        self,
+        rows: list[list[float]],
+        reference: Sequence[float],
+        lower: Sequence[float],
+        upper: Sequence[float],
+    ) -> tuple[float, ...] | None:
+        """The closed-form solution [rad] nearest ``reference`` [rad] (Euclidean, in joint space) after wrapping
+        each joint into ``[lower, upper]`` [rad] closest to ``reference``; None when no branch fits the limits.
+
+        ``rows`` are the first three rows of ``T_base_link_tool0`` (4x4, [m]) as lists. The answer is the one
+        :meth:`ik_array` (with ``q6_default = reference[5]``), ``UR5._wrap_rows`` and a stable sort by distance
+        give, to the last bit: the same float operations, the same tie order (shoulder, wrist, elbow). Faster
+        because it is a best-first search: a shoulder, wrist or elbow choice whose partial squared distance
+        already exceeds the best complete branch is not worked out (with a warm start, one or two branches are),
+        and scalar throughout (numpy's per-call cost would dominate on 6-vectors).
+        """
+        pi, two_pi, wrap, bound_factor = _PI, _TWO_PI, wrap_joint, _PRUNE
+        (R00, R01, R02, px), (R10, R11, R12, py), (R20, R21, R22, pz) = rows[0], rows[1], rows[2]
+        R00, R01, R02, px, R10, R11, R12, py = -R00, -R01, -R02, -px, -R10, -R11, -R12, -py
+        r0, r1, r2, r3, r4, r5 = reference
+        lo0, lo1, lo2, lo3, lo4, lo5 = lower
+        hi0, hi1, hi2, hi3, hi4, hi5 = upper
+        d4, d6 = self.d4, self.d6
+        x05, y05 = px - d6 * R02, py - d6 * R12
+        r = math.hypot(x05, y05)
+        if r < 1e-12 or abs(d4 / r) > 1.0 + _ARGUMENT_SLACK:
+            return None
+        phi = math.acos(max(-1.0, min(1.0, d4 / r)))
+        psi = math.atan2(y05, x05)
+        L2, L3 = -self.a2, -self.a3
+        d1, d5 = self.d1, self.d5
+        best: tuple[float, ...] | None = None
+        best_dist = best_bound = math.inf
+        best_index = 8
+        # Each joint is wrapped inline as wrap_joint does: when its nearest turn lies within the limits, the
+        # clamps of the general formula do nothing and are skipped (k_lo <= k <= k_hi holds with their 1e-12
+        # slack); otherwise wrap_joint decides. A |z| < 1/2 rounds to 0 (no turn to add, the common case).
+        shoulders = []
+        for i, q1 in enumerate((psi + phi + pi / 2.0, psi - phi + pi / 2.0)):
+            w1 = (q1 + pi) % two_pi - pi
+            z = (r0 - w1) / two_pi
+            if not -0.5 < z < 0.5:
+                w1 += round(z) * two_pi
+            if not lo0 <= w1 <= hi0:
+                wrapped = wrap(q1, r0, lo0, hi0)
+                if wrapped is None:
+                    continue
+                w1 = wrapped
+            shoulders.append(((w1 - r0) * (w1 - r0), i, q1, w1))
+        if len(shoulders) == 2 and shoulders[1][0] < shoulders[0][0]:
+            shoulders.reverse()
+        for lb1, i, q1, w1 in shoulders:
+            if lb1 > best_bound:
+                continue
+            s1, c1 = math.sin(q1), math.cos(q1)
+            c5 = (px * s1 - py * c1 - d4) / d6
+            if abs(c5) > 1.0 + _ARGUMENT_SLACK:
+                continue
+            a5 = math.acos(max(-1.0, min(1.0, c5)))
+            sin_a5, c5 = math.sin(a5), math.cos(a5)
+            u0, u1, u2 = R00 * c1 + R10 * s1, R01 * c1 + R11 * s1, R02 * c1 + R12 * s1
+            n6, m6 = -R01 * s1 + R11 * c1, R00 * s1 - R10 * c1
+            wrists = []
+            for j, q5, s5 in ((0, a5, sin_a5), (1, -a5, -sin_a5)):
+                w5 = (q5 + pi) % two_pi - pi
+                z = (r4 - w5) / two_pi
+                if not -0.5 < z < 0.5:
+                    w5 += round(z) * two_pi
+                if not lo4 <= w5 <= hi4:
+                    wrapped = wrap(q5, r4, lo4, hi4)
+                    if wrapped is None:
+                        continue
+                    w5 = wrapped
+                wrists.append((lb1 + (w5 - r4) * (w5 - r4), j, s5, w5))
+            if len(wrists) == 2 and wrists[1][0] < wrists[0][0]:
+                wrists.reverse()
+            for lb5, j, s5, w5 in wrists:
+                if lb5 > best_bound:
+                    continue
+                q6 = r5 if abs(s5) < _WRIST_SINGULAR else math.atan2(n6 / s5, m6 / s5)
+                w6 = (q6 + pi) % two_pi - pi
+                z = (r5 - w6) / two_pi
+                if not -0.5 < z < 0.5:
+                    w6 += round(z) * two_pi
+                if not lo5 <= w6 <= hi5:
+                    wrapped = wrap(q6, r5, lo5, hi5)
+                    if wrapped is None:
+                        continue
+                    w6 = wrapped
+                lb2 = lb5 + (w6 - r5) * (w6 - r5)
+                if lb2 > best_bound:
+                    continue
+                s6, c6 = math.sin(q6), math.cos(q6)
+                # T14 = T01^-1 T T56^-1 T45^-1 (planar 2-link): its first column and its translation
+                t00 = c5 * (u0 * c6 - u1 * s6) - s5 * u2
+                t10 = c5 * (R20 * c6 - R21 * s6) - R22 * s5
+                x = px * c1 + py * s1 + d5 * (u0 * s6 + u1 * c6) - d6 * u2
+                y = pz - d1 - R22 * d6 + d5 * (R20 * s6 + R21 * c6)
+                c3 = (x * x + y * y - L2 * L2 - L3 * L3) / (2.0 * L2 * L3)
+                if abs(c3) > 1.0 + _ARGUMENT_SLACK:
+                    continue
+                a3 = math.acos(max(-1.0, min(1.0, c3)))
+                sin_a3, c3 = math.sin(a3), math.cos(a3)
+                elbows = []
+                for k, q3, s3 in ((0, a3, sin_a3), (1, -a3, -sin_a3)):
+                    w3 = (q3 + pi) % two_pi - pi
+                    z = (r2 - w3) / two_pi
+                    if not -0.5 < z < 0.5:
+                        w3 += round(z) * two_pi
+                    if not lo2 <= w3 <= hi2:
+                        wrapped = wrap(q3, r2, lo2, hi2)
+                        if wrapped is None:
+                            continue
+                        w3 = wrapped
+                    elbows.append((lb2 + (w3 - r2) * (w3 - r2), k, q3, s3, w3))
+                if len(elbows) == 2 and elbows[1][0] < elbows[0][0]:
+                    elbows.reverse()
+                q234 = math.atan2(t10, t00)
+                theta = math.atan2(y, x)
+                for lb3, k, q3, s3, w3 in elbows:
+                    if lb3 > best_bound:
+                        continue
+                    q2 = theta - math.atan2(L3 * s3, L2 + L3 * c3)
+                    w2 = (q2 + pi) % two_pi - pi
+                    z = (r1 - w2) / two_pi
+                    if not -0.5 < z < 0.5:
+                        w2 += round(z) * two_pi
+                    if not lo1 <= w2 <= hi1:
+                        wrapped = wrap(q2, r1, lo1, hi1)
+                        if wrapped is None:
+                            continue
+                        w2 = wrapped
+                    q4 = q234 - q2 - q3
+                    w4 = (q4 + pi) % two_pi - pi
+                    z = (r3 - w4) / two_pi
+                    if not -0.5 < z < 0.5:
+                        w4 += round(z) * two_pi
+                    if not lo3 <= w4 <= hi3:
+                        wrapped = wrap(q4, r3, lo3, hi3)
+                        if wrapped is None:
+                            continue
+                        w4 = wrapped
+                    e0, e1, e2, e3, e4, e5 = w1 - r0, w2 - r1, w3 - r2, w4 - r3, w5 - r4, w6 - r5
+                    full = e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3 + e4 * e4 + e5 * e5
+                    dist, index = math.sqrt(full), 4 * i + 2 * j + k
+                    if dist < best_dist or (dist == best_dist and index < best_index):
+                        best, best_dist, best_index = (w1, w2, w3, w4, w5, w6), dist, index
+                        best_bound = full * bound_factor
+        return best
 
 
 def ur_parameters(model: pin.Model, data: pin.Data, flange_frame_id: int) -> URParameters | None:
