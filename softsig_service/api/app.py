@@ -149,14 +149,16 @@ def create_app(settings: Settings | None = None, *, job_kinds: Mapping[str, JobK
             {"name": "objects", "description": "registered objects: geometry sent once, named by id in plans"},
             {"name": "plans", "description": "top-grasp planning for the UR5 (strategies S and C)"},
             {"name": "jobs", "description": "validations and experiments in MuJoCo, run as jobs"},
+            {"name": "calibration", "description": "real grasp outcomes, and calibration of a hand to them (a job)"},
             {"name": "operations", "description": "health, readiness and metrics"},
         ],
     )
     install_problem_handlers(app)
     install_docs(app)
-    from softsig_service.api.routes import hands, jobs, objects, ops, plans, scenes, signatures
+    from softsig_service.api.routes import calibration, hands, jobs, objects, ops, plans, scenes, signatures
 
-    routers = (ops.router, hands.router, signatures.router, objects.router, plans.router, scenes.router, jobs.router)
+    routers = (ops.router, hands.router, signatures.router, calibration.router, objects.router, plans.router,
+               scenes.router, jobs.router)  # fmt: skip
     for router in routers:
         app.include_router(router)
     templates = [route for router in routers for route in router.routes]

@@ -20,6 +20,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from softsig_service.experiments.outcomes import CellSelector
 from softsig_service.objects.schema import (
     MAX_OBSTACLES,
     Integer,
@@ -333,3 +334,33 @@ class Readiness(Out):
 
     status: Literal["ready", "not_ready"]
     checks: dict[str, str]
+
+
+class CalibrationIn(Strict):
+    """Calibrate a hand to its stored real outcomes (docs/calibration.md): the manifest's declared parameters
+    fitted on the cells not held out, the held-out cells predicted by the calibrated and the uncalibrated model."""
+
+    hand: HandName
+    outcomes_version: Integer | None = Field(
+        None, ge=1, le=2**31 - 1, strict=True, description="the hand's outcomes version (default: the newest)"
+    )
+    held_out: list[CellSelector] = Field(
+        default_factory=list, max_length=100, description="cells held out of the fit (any selector matching)"
+    )
+    parameters: list[str] = Field(
+        default_factory=list, max_length=20, description="declared parameters to fit (default: all)"
+    )
+    ranges: dict[str, tuple[float, float]] = Field(
+        default_factory=dict, description="narrower [low, high] per parameter, within the declared range"
+    )
+    budget: Integer = Field(2000, ge=1, le=10_000_000, strict=True, description="simulations for the fit")
+    trials_per_cell: Integer = Field(20, ge=1, le=10_000, strict=True, description="draws per noisy fitted cell")
+    test_trials: Integer = Field(40, ge=1, le=10_000, strict=True, description="draws per noisy held-out cell")
+    seed: Integer = Field(0, ge=0, le=2**32 - 1, strict=True)
+    name: str | None = Field(
+        None, pattern=HAND_NAME_PATTERN, description="the calibrated variant's hand name (default: generated)"
+    )
+    workers: Integer | None = Field(None, ge=1, le=64, strict=True, description="simulation processes")
+    time_limit: float | None = Field(
+        None, gt=0.0, strict=True, description="wall-time cap [s] (at most the service's cap)"
+    )

@@ -8,6 +8,7 @@ from typing import Annotated, Any
 
 import typer
 
+from softsig_service.cli.calibration import calibration_app
 from softsig_service.cli.experiments import experiment_app, validate
 from softsig_service.cli.hands import hands_app
 from softsig_service.cli.options import (
@@ -39,6 +40,7 @@ app.add_typer(hands_app, name="hands")
 app.add_typer(signature_app, name="signature")
 app.command("validate")(validate)
 app.add_typer(experiment_app, name="experiment")
+app.add_typer(calibration_app, name="calibration")
 
 
 @app.command("plan")

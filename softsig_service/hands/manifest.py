@@ -20,6 +20,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from softsig_service.errors import InvalidManifest
+from softsig_service.hands.calibration import CalibrationSection
 
 NAME_PATTERN = r"^[a-z][a-z0-9_\-]{0,63}$"
 MODEL_SUFFIXES = (".xml", ".urdf", ".xacro")
@@ -203,6 +204,11 @@ class HandManifest(_Strict):
     closure: Closure
     simulation: SimulationSettings = Field(default_factory=SimulationSettings)
     physical: PhysicalParameters = Field(default_factory=PhysicalParameters)
+    calibration: CalibrationSection | None = Field(
+        None,
+        description="parameters a calibration may move (ranges and sources) and, for a calibrated variant, the "
+        "values applied (softsig_service.hands.calibration)",
+    )
 
     @field_validator("model", "scene")
     @classmethod
@@ -289,6 +295,7 @@ def _known_fields(parent: tuple[int | str, ...]) -> list[str] | None:
         "simulation": SimulationSettings,
         "physical": PhysicalParameters,
         "mount_pose": MountPose,
+        "calibration": CalibrationSection,
     }
     names = [p for p in parent if isinstance(p, str)]
     if not names:

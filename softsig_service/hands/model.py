@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 from softsig_service.config import ModelLimits, Settings, default_settings
 from softsig_service.errors import FrameNotFound, HandNotFound, InvalidHandModel, ModelTooLarge, UnsafePath
 from softsig_service.hands.assets import load_urdf_source
+from softsig_service.hands.calibration import apply_calibration
 from softsig_service.hands.manifest import (
     HandManifest,
     PostureClosure,
@@ -227,6 +228,7 @@ def _build_hand(
 ) -> HandModel:
     src = src or load_spec(manifest, folder, limits)
     spec = src.spec
+    apply_calibration(spec, manifest.calibration)
     T_MH = mount_transform(manifest.mount_pose)
     apply_mount_pose(spec, manifest.mount, T_MH)
     closure = manifest.closure

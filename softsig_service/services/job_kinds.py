@@ -47,6 +47,43 @@ def _store(
     }
 
 
+def register_calibrated_variant(registry: Registry, params: dict[str, Any], result: dict[str, Any]) -> dict[str, Any]:
+    """Register a finished calibration's variant as a hand of its own (the job's ``on_result`` hook): its folder
+    copied into the service's hand storage, loaded and added under the name the request chose."""
+    import hashlib
+    import shutil
+    import uuid
+    from pathlib import Path
+
+    source = Path(result.pop("variant_folder"))
+    name = str(result.pop("variant_name"))
+    folder = Path(params["user_hands_dir"]) / name / uuid.uuid4().hex
+    shutil.copytree(source, folder)
+    try:
+        listing = [
+            {
+                "path": str(p.relative_to(folder)),
+                "size": p.stat().st_size,
+                "sha256": hashlib.sha256(p.read_bytes()).hexdigest(),
+            }
+            for p in sorted(folder.rglob("*"))
+            if p.is_file()
+        ]
+        info = inspect_hand(str(folder / "hand.toml"), Settings(**params["settings"]).limits)
+        rec = repo.add_hand(
+            registry,
+            name=name,
+            manifest_path=str(folder / "hand.toml"),
+            info=info,
+            files=listing,
+            folder=str(folder),
+        )
+    except BaseException:
+        shutil.rmtree(folder.parent if not any(folder.parent.iterdir()) else folder, ignore_errors=True)
+        raise
+    return {**result, "variant": {"hand": rec.name, "links": {"hand": f"/v1/hands/{rec.name}"}}}
+
+
 def default_job_kinds() -> dict[str, JobKind]:
     """The job kinds this service runs, by name."""
     kinds = (
@@ -67,6 +104,13 @@ def default_job_kinds() -> dict[str, JobKind]:
             "validation",
             "softsig_service.services.tasks:run_validation",
             "simulate a plan's grasp in MuJoCo, trials under object-pose noise",
+        ),
+        JobKind(
+            "calibration",
+            "softsig_service.services.tasks:run_calibration",
+            "fit a hand's declared parameters to its real outcomes, predict the held-out cells; the calibrated "
+            "variant registered as a hand",
+            on_result=register_calibrated_variant,
         ),
         JobKind(
             "experiment",

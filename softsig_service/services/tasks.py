@@ -261,3 +261,54 @@ def run_experiment(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
         "summary": to_jsonable(result.summary),
         "files": sorted(Path(f).name for f in result.files.values()),
     }
+
+
+def run_calibration(params: dict[str, Any], ctx: JobContext) -> dict[str, Any]:
+    """A calibration (:func:`~softsig_service.experiments.calibration.calibrate`) of the hand ``hand_ref`` to the
+    stored outcomes ``outcomes`` (the route adds them), its files (``calibration.json``, ``evaluations.jsonl``,
+    ``report.md``, ``calibration.png``, ``variant/<name>/``) in the job's folder; progress per parameter set."""
+    from softsig_service.experiments.calibration import CalibrationSpec, calibrate
+    from softsig_service.experiments.calibration_report import write_calibration_report
+    from softsig_service.experiments.outcomes import CellSelector, RealOutcomes
+
+    spec = CalibrationSpec(
+        hand=str(params["hand_ref"]),
+        outcomes=RealOutcomes.model_validate(params["outcomes"]),
+        held_out=tuple(CellSelector.model_validate(s) for s in params["held_out"]),
+        parameters=tuple(params["parameters"]),
+        ranges={k: (float(v[0]), float(v[1])) for k, v in params["ranges"].items()},
+        budget=int(params["budget"]),
+        trials_per_cell=int(params["trials_per_cell"]),
+        test_trials=int(params["test_trials"]),
+        seed=int(params["seed"]),
+        name=str(params["name"]),
+        outcomes_version=params.get("outcomes_version"),
+    )
+    meter: Progress | None = None
+
+    def progress(done: int, planned: int, message: str) -> None:
+        nonlocal meter
+        meter = meter or Progress(planned)
+        meter.update(done)
+        ctx.progress(meter.fraction, f"{message}; {meter.message()}")
+
+    workers = params.get("workers") or 1
+    result = calibrate(spec, ctx.out_dir, workers=int(workers), progress=progress, settings=job_settings(params))
+    payload = result.to_json_dict()
+    files = write_calibration_report(payload, ctx.out_dir)
+    return {
+        "hand": params["hand"],
+        "outcomes_version": spec.outcomes_version,
+        "calibrated": payload["calibrated"],
+        "defaults": payload["defaults"],
+        "parameters": payload["parameters"],
+        "heldout_loglik": payload["heldout_loglik"],
+        "fitted_loglik": payload["fitted_loglik"],
+        "simulations": payload["simulations"],
+        "wall_time": payload["wall_time"],
+        "variant_folder": str(result.variant.parent) if result.variant else None,
+        "variant_name": spec.name,
+        "files": sorted(
+            ["calibration.json", "evaluations.jsonl", Path(files["report"]).name, Path(files["figure"]).name]
+        ),
+    }

@@ -106,6 +106,16 @@ SAMPLES: dict[str, Callable[[TestClient], tuple[str, Request, Request]]] = {
         {"json": {"hand": "parallel_gripper", "object": BOX, "strategy": "S", "trials": 2}},
     ),
     "/v1/experiments": lambda api: ("/v1/experiments", {"json": {"trials": 1}}, {"json": {"trials": 2}}),
+    "/v1/hands/{hand}/outcomes": lambda api: (
+        "/v1/hands/pisa_iit_softhand/outcomes",
+        {"json": {"cells": [OUTCOME]}},
+        {"json": {"cells": [{**OUTCOME, "successes": 3}]}},
+    ),
+    "/v1/calibrations": lambda api: (
+        "/v1/calibrations",
+        {"json": {"hand": "pisa_iit_softhand", "outcomes_version": _outcomes(api), "budget": 2}},
+        {"json": {"hand": "pisa_iit_softhand", "outcomes_version": _outcomes(api), "budget": 3}},
+    ),
     "/v1/jobs/{job_id}/cancel": lambda api: (
         f"/v1/jobs/{_job(api)}/cancel",
         {"content": b""},
@@ -113,6 +123,15 @@ SAMPLES: dict[str, Callable[[TestClient], tuple[str, Request, Request]]] = {
     ),
 }
 """Per creating operation of the OpenAPI document: its URL, a first request and a request with another body."""
+
+
+OUTCOME = {"object": "box", "strategy": "C", "trials": 4, "successes": 4}
+
+
+def _outcomes(api: TestClient) -> int:
+    r = api.post("/v1/hands/pisa_iit_softhand/outcomes", json={"cells": [OUTCOME]}, headers=AUTH)
+    assert r.status_code == 201, r.text
+    return int(r.json()["version"])
 
 
 def _job(api: TestClient) -> str:

@@ -81,6 +81,10 @@ NOT_STATABLE: dict[str, str] = {
     "POST /v1/segmentations": "the cloud must hold a horizontal table plane and something standing on it",
     "POST /v1/hands/{hand}/signatures/capture": "the grid's simulations (a product of step, half_width, n_theta "
     "and holdout) are capped, and its object must be graspable by the hand",
+    "POST /v1/hands/{hand}/outcomes": "at least one cell or trial, a cell given once, its successes at most its "
+    "trials (relations between fields and items)",
+    "POST /v1/calibrations": "the hand must declare calibration parameters and hold outcomes (registry state); "
+    "the budget must pay for two parameter sets of its cells, within the service's cap (relations with them)",
 }
 """Operations where schema-valid data may be refused, and why (every other check runs on them)."""
 

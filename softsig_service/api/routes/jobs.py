@@ -39,7 +39,7 @@ router = APIRouter(prefix="/v1", tags=["jobs"])
 JobId = Annotated[str, Path(pattern=r"^[0-9a-f]{32}$", description="a job's id")]
 
 
-def _hand_for_job(ctx: AppContext, name: str) -> repo.HandRecord:
+def hand_for_job(ctx: AppContext, name: str) -> repo.HandRecord:
     try:
         return ctx.hand(name)
     except HandNotFound as exc:
@@ -51,7 +51,7 @@ def _hand_ref(hand: repo.HandRecord) -> str:
     return hand.name if hand.builtin else hand.manifest_path
 
 
-def _private(ctx: AppContext, hand: repo.HandRecord) -> dict[str, Any]:
+def private_params(ctx: AppContext, hand: repo.HandRecord) -> dict[str, Any]:
     """A simulation job's private parameters: how it finds the hand, and the settings that shape its models."""
     return {"hand_ref": _hand_ref(hand), "settings": model_settings(ctx.settings)}
 
@@ -62,7 +62,7 @@ def _check_trials(ctx: AppContext, n: int, what: str) -> None:
         raise InvalidInput(f"{what} asks for {n} trials; the service allows at most {cap}", field="trials", value=n)
 
 
-def _require_kind(ctx: AppContext, kind: str) -> None:
+def require_kind(ctx: AppContext, kind: str) -> None:
     if kind not in ctx.jobs.kinds:
         raise NotAvailable(f"{kind} jobs are not offered by this service", field="kind", value=kind)
 
@@ -78,9 +78,9 @@ async def create_validation(ctx: Ctx, body: ValidationIn) -> JSONResponse:
     ``successes`` and ``outcomes`` (one ``{seed, success, reason, lift_height}`` per trial); files
     ``validation.json`` and ``outcomes.csv``, and with ``keyframes`` one strip per trial,
     ``keyframes/trial_NNN.png``, whose URLs the result's ``keyframes`` lists."""
-    _require_kind(ctx, "validation")
+    require_kind(ctx, "validation")
     _check_trials(ctx, body.trials, "the validation")
-    hand = await run_in_threadpool(_hand_for_job, ctx, body.hand)
+    hand = await run_in_threadpool(hand_for_job, ctx, body.hand)
     # bad objects fail now, naming the field; the job gets them in base_link (a cloud as its solid; a tabletop's
     # other clusters as obstacles)
     parsed, obstacles = await run_in_threadpool(scene_objects, body.object, body.obstacles, body, stored_objects(ctx))
@@ -97,7 +97,7 @@ async def create_validation(ctx: Ctx, body: ValidationIn) -> JSONResponse:
             raise RenderUnavailable(f"keyframes need offscreen rendering, which this service lacks: {reason}",
                                     field="keyframes", value=True)  # fmt: skip
         params["keyframes"] = True
-    job = await ctx.jobs.submit("validation", params, body.time_limit, private=_private(ctx, hand))
+    job = await ctx.jobs.submit("validation", params, body.time_limit, private=private_params(ctx, hand))
     return accepted(job)
 
 
@@ -110,11 +110,11 @@ async def create_experiment(ctx: Ctx, body: ExperimentIn) -> JSONResponse:
     """The paper's Table I in simulation: 3 conditions x 3 objects x strategies S and C x ``trials`` per cell.
     202 with the job; when done its files are ``report.md`` (Table I layout, Wilson intervals, Fisher tests),
     ``results.json``, ``results.csv``, ``table1.png``, ``trials.jsonl`` and ``campaign.json``."""
-    _require_kind(ctx, "experiment")
+    require_kind(ctx, "experiment")
     _check_trials(ctx, TABLE1_CELLS * body.trials, f"the experiment ({TABLE1_CELLS} cells)")
-    hand = await run_in_threadpool(_hand_for_job, ctx, body.hand)
+    hand = await run_in_threadpool(hand_for_job, ctx, body.hand)
     params = {"name": body.name, "hand": hand.name, "trials": body.trials, "seed": body.seed, "workers": body.workers}
-    job = await ctx.jobs.submit("experiment", params, body.time_limit, private=_private(ctx, hand))
+    job = await ctx.jobs.submit("experiment", params, body.time_limit, private=private_params(ctx, hand))
     return accepted(job)
 
 

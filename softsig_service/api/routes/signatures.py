@@ -37,7 +37,9 @@ from softsig_service.services.tasks import closure_signature, markers_signature
 
 router = APIRouter(prefix="/v1", tags=["signatures"])
 HandPath = Annotated[str, Path(pattern=HAND_NAME_PATTERN, description="the hand's name")]
-KindQuery = Annotated[Literal["closure", "stiffness", "capture"] | None, Query(description="only this kind")]
+KindQuery = Annotated[
+    Literal["closure", "stiffness", "capture", "outcomes"] | None, Query(description="only this kind")
+]
 
 
 def signature_summary(rec: repo.SignatureRecord) -> dict[str, Any]:
@@ -81,7 +83,8 @@ NEW_VERSION: dict[str, Any] = {
 """What the routes that store a new signature version declare: 201 with the version, write access, 404/409/412."""
 
 
-def _created(response: Response, rec: repo.SignatureRecord) -> dict[str, Any]:
+def created(response: Response, rec: repo.SignatureRecord) -> dict[str, Any]:
+    """A new version's 201 body, with its ``Location`` and ``ETag``."""
     response.headers["Location"] = f"/v1/hands/{rec.hand}/signatures/{rec.version}"
     return signature_out(with_etag(response, rec))
 
@@ -119,7 +122,7 @@ async def create_closure_signature(
             params=params, hand_revision=record.revision, if_match=if_match,
         )
     )  # fmt: skip
-    return _created(response, rec)
+    return created(response, rec)
 
 
 @router.post(
@@ -207,7 +210,7 @@ async def upload_markers(
             params=params, hand_revision=record.revision, if_match=if_match,
         )
     )  # fmt: skip
-    return _created(response, rec)
+    return created(response, rec)
 
 
 @router.get(
