@@ -1,7 +1,7 @@
 """Write the Pisa/IIT SoftHand's MJCF from its published description, for each of its mounts on the UR5 flange:
-hands/pisa_iit_softhand/pisa_iit_softhand.xml (on a side bracket) and
-hands/pisa_iit_softhand_inline/pisa_iit_softhand_inline.xml (in line with the tool axis, through an ATI Gamma
-force-torque sensor, the paper's setup, section III.A).
+hands/pisa_iit_softhand/pisa_iit_softhand.xml (in line with the tool axis, through an ATI Gamma force-torque
+sensor, the paper's setup, section III.A: the default) and hands/pisa_iit_softhand_bracket/
+pisa_iit_softhand_bracket.xml (on a side bracket).
 
 Every number below is either from the published description (Catalano et al., IJRR 33(5), 2014, and the public
 ROS description "pisa-iit-soft-hand", BSD-3; see hands/pisa_iit_softhand/README.md) or marked *approximate*.
@@ -262,7 +262,7 @@ def rpy_of(R: np.ndarray) -> tuple[float, float, float]:
     return (math.atan2(R[2, 1], R[2, 2]), math.asin(-R[2, 0]), math.atan2(R[1, 0], R[0, 0]))
 
 
-MODEL_NAMES = {"bracket": "pisa_iit_softhand", "inline": "pisa_iit_softhand_inline"}
+MODEL_NAMES = {"bracket": "pisa_iit_softhand_bracket", "inline": "pisa_iit_softhand"}
 
 
 def mount_geom(mount: str) -> str:
@@ -294,7 +294,7 @@ def frame_comment(mount: str) -> str:
     )
 
 
-def build(mount: str = "bracket") -> str:
+def build(mount: str = "inline") -> str:
     """The MJCF of the hand on ``mount`` ("bracket" | "inline")."""
     Rm, p = palm_frame_in_hand() if mount == "bracket" else palm_frame_inline()
     C, g, kp, frange = transmission()

@@ -39,7 +39,8 @@ def signature_closure(
 ) -> None:
     """Compute a hand's closure signature (CS) from a simulated closure or from tracked markers.
 
-    Everything is in the hand frame; the ellipsoid criterion is in the JSON's ``params.criterion``.
+    Everything is in the hand's grasp frame (its hand frame when the manifest gives no ``grasp_frame``; markers in
+    the hand frame); the ellipsoid criterion is in the JSON's ``params.criterion``.
     """
     from softsig_service.errors import InvalidInput
     from softsig_service.signatures.closure import check_criterion, compute_closure_signature
@@ -51,6 +52,7 @@ def signature_closure(
         the_criterion = check_criterion(criterion)
         if (hand is None) == (markers is None):
             raise InvalidInput("give either a hand or --markers FILE", field="hand")
+        frame = "hand frame"
         if markers is not None:
             from softsig_service.signatures.markers import load_markers
 
@@ -62,6 +64,8 @@ def signature_closure(
             assert hand is not None
             the_hand = load_hand(hand, Settings())
             traj = in_grasp_frame(the_hand, simulate_closure(the_hand, surface_points=None if method == "mesh" else 0))
+            if the_hand.manifest.grasp_frame is not None:
+                frame = "grasp frame"
         cs = compute_closure_signature(traj, method, criterion=the_criterion)
         if plot is not None:
             from softsig_service.experiments.closure_plot import plot_closure_signature
@@ -73,7 +77,7 @@ def signature_closure(
             ax = ", ".join(f"{v:+.3f}" for v in cs.axis)
             how = f"{method}, {cs.params['criterion']} criterion" if "criterion" in cs.params else method
             lines = [
-                f"{traj.hand}: closure signature ({how}) in the hand frame",
+                f"{traj.hand}: closure signature ({how}) in the {frame}",
                 f"  axis        ({ax})",
                 f"  anchor      ({', '.join(f'{v:.4f}' for v in cs.anchor)}) m",
                 f"  magnitude   {cs.magnitude:+.4f}  [{data['extras'].get('magnitude_unit', '')}]",

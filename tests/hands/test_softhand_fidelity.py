@@ -193,11 +193,11 @@ def test_the_wrist_reference_point_is_the_palm_frame_origin(softhand: HandModel)
     assert data.site_xpos[point.id] == pytest.approx(data.xpos[softhand.model.body("palm").id], abs=1e-9)
 
 
-def test_the_hand_frame_follows_the_convention(softhand: HandModel) -> None:
-    """Hand +z out of the palm (palm +x), hand +x from the thumb side to the little finger (palm -y)."""
+def test_the_grasp_frame_follows_the_convention(softhand: HandModel) -> None:
+    """Grasp +z out of the palm (palm +x), grasp +x from the thumb side to the little finger (palm -y)."""
     data = prepare_data(softhand, softhand.model)
     R_palm = data.xmat[softhand.model.body("palm").id].reshape(3, 3)
-    R_mount = data.xmat[softhand.mount_body].reshape(3, 3)
-    palm_in_hand = R_mount.T @ R_palm
+    R_grasp = data.xmat[softhand.mount_body].reshape(3, 3) @ softhand.grasp_frame[:3, :3]
+    palm_in_hand = R_grasp.T @ R_palm
     assert palm_in_hand[:, 0] == pytest.approx([0, 0, 1], abs=1e-9)
     assert palm_in_hand[:, 1] == pytest.approx([-1, 0, 0], abs=1e-9)

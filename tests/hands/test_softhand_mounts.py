@@ -1,10 +1,8 @@
-"""The SoftHand on its two mounts: the side bracket (``pisa_iit_softhand``) and in line with the tool axis through
-an ATI Gamma F/T sensor (``pisa_iit_softhand_inline``, the paper's setup). The hand is the same in its grasp frame;
+"""The SoftHand on its two mounts: in line with the tool axis through an ATI Gamma F/T sensor (``pisa_iit_softhand``,
+the paper's setup) and on a side bracket (``pisa_iit_softhand_bracket``). The hand is the same in its grasp frame;
 only where it sits on the flange differs."""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,11 +14,12 @@ from softsig_service.planning.hand_model import planning_model
 from softsig_service.planning.request import PlanRequest
 from softsig_service.simulation.scene import build_scene
 
-INLINE = str(Path(__file__).resolve().parents[2] / "hands" / "pisa_iit_softhand_inline" / "hand.toml")
+INLINE = "pisa_iit_softhand"
+BRACKET = "pisa_iit_softhand_bracket"
 
 
 def test_the_hand_is_the_same_in_its_grasp_frame_on_both_mounts() -> None:
-    bracket, inline = planning_model("pisa_iit_softhand"), planning_model(INLINE)
+    bracket, inline = planning_model(BRACKET), planning_model(INLINE)
     assert bracket.point_names == inline.point_names
     assert np.allclose(bracket.points_open, inline.points_open, atol=1e-12)
     assert np.allclose(bracket.signature.axis, inline.signature.axis, atol=1e-9)
@@ -39,7 +38,7 @@ def test_in_line_the_fingers_run_along_the_tool_axis_behind_the_sensor() -> None
     sensor = hand.model.geom("sensor_geom")
     radius, half = sensor.size[0], sensor.size[1]
     assert np.isclose(2 * radius, 0.0754) and np.isclose(2 * half, 0.0333) and np.isclose(sensor.pos[2], half)
-    bracket = load_hand("pisa_iit_softhand")
+    bracket = load_hand(BRACKET)
     assert np.isclose(hand.model.body_mass.sum() - bracket.model.body_mass.sum(), 0.255 - 0.12)
 
 
@@ -47,7 +46,7 @@ def test_in_line_the_fingers_run_along_the_tool_axis_behind_the_sensor() -> None
 def test_the_same_grasp_frame_plan_reached_with_the_tool_axis_horizontal(strategy: str) -> None:
     box = builtin_object("box")
     planner = default_planner()
-    a = planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=box, strategy=strategy))  # type: ignore[arg-type]
+    a = planner.plan(PlanRequest(hand=BRACKET, obj=box, strategy=strategy))  # type: ignore[arg-type]
     b = planner.plan(PlanRequest(hand=INLINE, obj=box, strategy=strategy))  # type: ignore[arg-type]
     assert a.success and b.success, (a.reasons, b.reasons)
     assert a.grasp_frame_pose is not None and b.grasp_frame_pose is not None and b.grasp_pose is not None

@@ -22,7 +22,9 @@ from softsig_service.planning.request import PlanRequest
 from softsig_service.planning.wrist_nlp import CENTRED, DEFAULT_CONE, LIMIT_MARGIN, solve_joint_wrist
 from softsig_service.simulation.scene import build_scene
 
-HAND = "pisa_iit_softhand"
+HAND = "pisa_iit_softhand_bracket"
+"""The NLP's cases were chosen on the bracket mount (tool axis vertical at a top grasp): there the 20-degree box and
+the 0.9 m reach need the joint NLP; in line the same box's untilted pose already meets the constraints."""
 
 
 def _tilted_box(angle: float) -> object:

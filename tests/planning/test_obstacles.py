@@ -47,10 +47,10 @@ def _clear(planner: Planner, hand: str, plan: GraspPlan, obstacle: TableObject) 
 def test_a_block_on_one_side_makes_s_take_its_other_branch(planner: Planner) -> None:
     free = _plan(planner, "pisa_iit_softhand")
     assert free.success
-    block = _post(0.12 if abs(yaw_of(free.grasp_pose[:3, :3])) > 1.0 else -0.12)
+    block = _post(0.12 if abs(yaw_of(free.grasp_frame_pose[:3, :3])) > 1.0 else -0.12)
     blocked = _plan(planner, "pisa_iit_softhand", block)
     assert blocked.success, blocked.reasons
-    turn = abs(yaw_of(blocked.grasp_pose[:3, :3]) - yaw_of(free.grasp_pose[:3, :3]))
+    turn = abs(yaw_of(blocked.grasp_frame_pose[:3, :3]) - yaw_of(free.grasp_frame_pose[:3, :3]))
     assert math.isclose(turn, math.pi, abs_tol=1e-6)  # the other yaw branch: thumb and fingers swapped
     assert not _clear(planner, "pisa_iit_softhand", free, block)  # the first branch went through it
     assert _clear(planner, "pisa_iit_softhand", blocked, block)

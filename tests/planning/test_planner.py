@@ -43,11 +43,11 @@ def test_strategy_c_aligns_the_cs_and_s_aligns_the_box(planner: Planner, yaw: fl
     plan_s = planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy="S"))
     assert plan_c.success, plan_c.reasons
     assert plan_s.success, plan_s.reasons
-    assert plan_c.grasp_pose is not None and plan_s.grasp_pose is not None
-    R_c, R_s = plan_c.grasp_pose[:3, :3], plan_s.grasp_pose[:3, :3]
+    assert plan_c.grasp_frame_pose is not None and plan_s.grasp_frame_pose is not None
+    R_c, R_s = plan_c.grasp_frame_pose[:3, :3], plan_s.grasp_frame_pose[:3, :3]  # the CS is in the grasp frame
     assert axis_angle_between_lines(R_c @ cs.axis, obj.o2) <= ONE_DEGREE
     assert axis_angle_between_lines(R_s[:, 0], obj.o1) <= ONE_DEGREE
-    assert R_c[2, 2] < -0.98 and R_s[2, 2] < -0.999  # top grasps: hand +z down
+    assert R_c[2, 2] < -0.98 and R_s[2, 2] < -0.999  # top grasps: grasp +z down
     assert plan_c.quality["alignment_error"] <= ONE_DEGREE
     _check_kinematics(planner, plan_c)
     _check_kinematics(planner, plan_s)
@@ -178,9 +178,10 @@ def test_concurrent_plans_from_threads_match_sequential_ones(planner: Planner) -
 
 
 def _over_centre(plan: GraspPlan, point: np.ndarray, obj_center: np.ndarray) -> float:
-    """Horizontal distance [m] between the hand-frame ``point`` at the grasp pose and the object's centre."""
-    assert plan.grasp_pose is not None
-    world = plan.grasp_pose[:3, :3] @ point + plan.grasp_pose[:3, 3]
+    """Horizontal distance [m] between the grasp-frame ``point`` (a planning model's) at the grasp and the object's
+    centre."""
+    assert plan.grasp_frame_pose is not None
+    world = plan.grasp_frame_pose[:3, :3] @ point + plan.grasp_frame_pose[:3, 3]
     return float(np.linalg.norm(world[:2] - obj_center[:2]))
 
 
@@ -205,7 +206,7 @@ def test_s_and_c_put_the_same_hand_point_over_the_object_and_differ_in_yaw(
         # the yaws differ by the closure signature's tilt from the fingers' closing axis (hand y)
         cs = model.signature.axis
         tilt = axis_angle_between_lines(np.array([cs[0], cs[1], 0.0]), np.array([0.0, 1.0, 0.0]))
-        R_s, R_c = (plans[s].grasp_pose[:3, :3] for s in ("S", "C"))  # type: ignore[index]
+        R_s, R_c = (plans[s].grasp_frame_pose[:3, :3] for s in ("S", "C"))  # type: ignore[index]
         assert abs(axis_angle_between_lines(R_s[:, 0], R_c[:, 0]) - tilt) <= math.radians(1.5)
 
 

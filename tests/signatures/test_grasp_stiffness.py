@@ -82,14 +82,14 @@ def test_every_hand_finds_a_power_grasp_of_the_apple(apple_signatures: dict[str,
 
 
 def test_the_softhands_stiffness_is_the_same_on_either_mount(apple_signatures: dict[str, StiffnessSignature]) -> None:
-    """The in-line SoftHand is the bracket's hand on another flange (the same hand in its grasp frame): its
+    """The SoftHand in line and on its bracket is one hand on two flanges (the same hand in its grasp frame): its
     translational stiffness, rotated into the grasp frame, matches the bracket's (placement discretised in 1 mm
     steps along another axis, hence a tolerance)."""
     Ks = {}
-    for name in ("pisa_iit_softhand", "pisa_iit_softhand_inline"):
+    for name in ("pisa_iit_softhand", "pisa_iit_softhand_bracket"):
         R = load_hand(name).grasp_frame[:3, :3]
         Ks[name] = R.T @ apple_signatures[name].K[:3, :3] @ R
-    a, b = Ks["pisa_iit_softhand"], Ks["pisa_iit_softhand_inline"]
+    a, b = Ks["pisa_iit_softhand_bracket"], Ks["pisa_iit_softhand"]
     assert np.linalg.norm(a - b) <= 0.15 * np.linalg.norm(a)
     assert np.allclose(np.linalg.eigvalsh(a), np.linalg.eigvalsh(b), rtol=0.15)
 
