@@ -35,8 +35,11 @@ def test_plan_c_is_the_planners_plan_and_is_stored(api: TestClient) -> None:
     assert r.headers["location"] == f"/v1/plans/{plan['id']}"
     pose = plan["grasp_pose"]
     assert pose["frame_id"] == "base_link" and set(pose["orientation"]) == {"x", "y", "z", "w"}
-    R = quat_to_matrix([pose["orientation"][k] for k in "wxyz"])
-    assert R[2, 2] < -0.98, "a top grasp: hand +z points down"
+    frame = plan["grasp_frame_pose"]
+    R = quat_to_matrix([frame["orientation"][k] for k in "wxyz"])
+    assert R[2, 2] < -0.98, "a top grasp: the grasp frame's +z points down"
+    R_flange = quat_to_matrix([pose["orientation"][k] for k in "wxyz"])
+    assert abs(R_flange[2, 2]) < 1e-6, "the SoftHand in line: the tool axis horizontal"
     assert len(plan["joint_positions"]) == 6 and len(plan["joint_names"]) == 6
     assert set(plan["approach"]) >= {"direction", "desired_distance", "min_distance"}
     assert plan["quality"]["alignment_error"] <= math.radians(1.0)

@@ -34,15 +34,32 @@ def _check_kinematics(planner: Planner, plan: GraspPlan) -> None:
         assert pos_err <= 1e-5 and rot_err <= 1e-4
 
 
+ARM_LIMITS = {"collision:table", "collision:self", "unreachable", "unreachable:lift", "unreachable:pre_grasp"}
+"""Why a reachable-looking pose may still have no top grasp: the arm itself (its links against the table or each
+other, its reach along the approach or the lift)."""
+
+
+def _plans_or_meets_the_arm(hand: str, plan: GraspPlan) -> bool:
+    """Whether ``plan`` succeeded; the SoftHand in line (its tool axis horizontal at a top grasp) may instead fail
+    for the arm's own limits (8 of 300 random box poses with S, 3 with C: docs/planning.md), the bracket never."""
+    if plan.success:
+        return True
+    assert hand == "pisa_iit_softhand" and set(plan.reasons) <= ARM_LIMITS, plan.reasons
+    return False
+
+
 @settings(max_examples=12, deadline=None)
 @given(yaw=st.floats(-math.pi, math.pi), x=st.floats(0.35, 0.6), y=st.floats(-0.25, 0.25))
-def test_strategy_c_aligns_the_cs_and_s_aligns_the_box(planner: Planner, yaw: float, x: float, y: float) -> None:
+@pytest.mark.parametrize("hand", ["pisa_iit_softhand", "pisa_iit_softhand_bracket"])
+def test_strategy_c_aligns_the_cs_and_s_aligns_the_box(
+    planner: Planner, hand: str, yaw: float, x: float, y: float
+) -> None:
     obj = builtin_object("box").with_pose(x, y, yaw)
-    cs = planning_model("pisa_iit_softhand").signature
-    plan_c = planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy="C"))
-    plan_s = planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy="S"))
-    assert plan_c.success, plan_c.reasons
-    assert plan_s.success, plan_s.reasons
+    cs = planning_model(hand).signature
+    plan_c = planner.plan(PlanRequest(hand=hand, obj=obj, strategy="C"))
+    plan_s = planner.plan(PlanRequest(hand=hand, obj=obj, strategy="S"))
+    if not (_plans_or_meets_the_arm(hand, plan_c) and _plans_or_meets_the_arm(hand, plan_s)):
+        return
     assert plan_c.grasp_frame_pose is not None and plan_s.grasp_frame_pose is not None
     R_c, R_s = plan_c.grasp_frame_pose[:3, :3], plan_s.grasp_frame_pose[:3, :3]  # the CS is in the grasp frame
     assert axis_angle_between_lines(R_c @ cs.axis, obj.o2) <= ONE_DEGREE
@@ -199,8 +216,9 @@ def test_s_and_c_put_the_same_hand_point_over_the_object_and_differ_in_yaw(
             s: planner.plan(PlanRequest(hand="pisa_iit_softhand", obj=obj, strategy=s, placement=placement))  # type: ignore[arg-type]
             for s in ("S", "C")
         }
+        if not all(_plans_or_meets_the_arm("pisa_iit_softhand", plan) for plan in plans.values()):
+            continue
         for s, plan in plans.items():
-            assert plan.success, (s, placement, plan.reasons)
             assert _over_centre(plan, point, obj.center) <= 0.002, (s, placement)
             assert plan.solver["placement"] == placement
         # the yaws differ by the closure signature's tilt from the fingers' closing axis (hand y)
