@@ -9,7 +9,7 @@ baseline's Wilson 95 % interval and whether the working tree's rate lies inside 
 seeds) changed their verdict.
 
 Run: .venv/bin/python benchmarks/bench_campaign.py [--trials 200] [--workers 2] [--baseline 106e8e9]
-     [--hand pisa_iit_softhand] [--objects box,apple,cylinder]
+     [--hand pisa_iit_softhand] [--baseline-hand NAME] [--objects box,apple,cylinder]
 """
 
 from __future__ import annotations
@@ -49,12 +49,12 @@ if __name__ == "__main__":
 """
 
 
-def run(tree: Path | None, args: argparse.Namespace, tmp: Path, name: str) -> dict:
+def run(tree: Path | None, args: argparse.Namespace, tmp: Path, name: str, hand: str) -> dict:
     script = tmp / f"{name}_campaign.py"
     script.write_text(CHILD, encoding="utf-8")
     env, cwd = tree_env(tree)
     out = subprocess.run(
-        [sys.executable, str(script), args.hand, str(args.trials), str(args.workers), str(tmp / name), args.objects],
+        [sys.executable, str(script), hand, str(args.trials), str(args.workers), str(tmp / name), args.objects],
         env=env, cwd=cwd, check=True, capture_output=True, text=True,
     )  # fmt: skip
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -73,13 +73,19 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--baseline", default="106e8e9", help="git revision to compare against")
     parser.add_argument("--hand", default="pisa_iit_softhand")
+    parser.add_argument(
+        "--baseline-hand",
+        default=None,
+        help="the hand's name in the baseline revision, where it differs (the bracket SoftHand was "
+        "pisa_iit_softhand before e1a27a1: --hand pisa_iit_softhand_bracket --baseline-hand pisa_iit_softhand)",
+    )
     parser.add_argument("--objects", default="box,apple,cylinder")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
         base_tree = export_revision(args.baseline, tmp / "baseline")
-        base = run(base_tree, args, tmp, "baseline")
-        new = run(None, args, tmp, "working")
+        base = run(base_tree, args, tmp, "baseline", args.baseline_hand or args.hand)
+        new = run(None, args, tmp, "working", args.hand)
     assert str(base_tree) in base["package"] and str(base_tree) not in new["package"]
     n = len(new["records"])
     print(f"== Table I grid, {args.hand}, {args.trials} per cell ({n} trials), {args.workers} workers, seed 7")
