@@ -9,9 +9,9 @@ for every object and strategy. Nothing else.
 pose noise by ``trials_per_cell`` trials whose perturbations come from fixed seeds (the same seeds for every
 parameter set: common random numbers, so two parameter sets differ by the model, not by the draws), a cell
 without noise by one simulation (all its trials are that simulation), and a real trial whose offset was measured
-by one simulation at that offset. The objective is the sum over fitted cells of the beta-binomial log-likelihood
-of the real counts given the simulated ones (:mod:`~softsig_service.experiments.likelihood`), which carries the
-simulation's own Monte Carlo noise.
+by one simulation at that offset (in a cell with measured offsets, its trials without one are not scored). The
+objective is the sum over fitted cells of the beta-binomial log-likelihood of the real counts given the simulated
+ones (:mod:`~softsig_service.experiments.likelihood`), which carries the simulation's own Monte Carlo noise.
 
 **The search.** Optuna's TPE sampler (seeded), asked and told one parameter set at a time; the uncalibrated
 model (every parameter at its default) is the first set evaluated. The budget is in simulations: as many sets as

@@ -237,3 +237,21 @@ def test_calibration_recovers_the_thumb_rest_the_outcomes_were_simulated_with(tm
 
     image = np.asarray(Image.open(files["figure"]).convert("L"))
     assert image.shape[0] > 300 and image.shape[1] > 600 and image.std() > 10
+
+
+def test_trials_with_measured_offsets_are_simulated_at_them(tmp_path: Path) -> None:
+    """Each real trial whose offset was measured is one simulation at that offset, scored against its own outcome:
+    at no offset the nominal box C grasp (carried), 6 cm to the side the hand misses it."""
+    trials = [
+        {"object": "box", "strategy": "C", "success": True, "offset": {"d_yaw": 0.0, "dx": 0.0, "dy": 0.0}},
+        {"object": "box", "strategy": "C", "success": False, "offset": {"d_yaw": 0.0, "dx": 0.0, "dy": 0.06}},
+    ]
+    spec = CalibrationSpec(
+        hand=HAND, outcomes=outcomes_from_json({"trials": trials}), parameters=("thumb_rest",), budget=4, seed=2
+    )
+    result = calibrate(spec, tmp_path / "cal", workers=1)
+    assert len(result.evaluations) == 2
+    first = result.evaluations[0]
+    assert first["cells"] == [["box", "C", 0.0, 0.0, 1, 2]]  # the two simulations: carried at 0, missed at 6 cm
+    # each trial predicted by its own simulation: (1 + 1/2) / 2 for the carried one, the same for the missed one
+    assert first["loglik"] == pytest.approx(2 * math.log(0.75), abs=1e-12)
