@@ -38,6 +38,12 @@ def wrap_joint(q: float, reference: float, lower: float, upper: float) -> float 
     then shifted by a multiple of 2 pi to its value within ``[lower, upper]`` [rad] closest to ``reference``
     [rad], exactly as ``UR5._wrap_rows`` does (the same float operations); None when no value fits the limits."""
     q = (q + _PI) % _TWO_PI - _PI
+    # the common case first: when the turn nearest the reference lies within the limits, the clamps below do
+    # nothing (k_lo <= k <= k_hi holds with their 1e-12 slack) and are skipped; |z| < 1/2 rounds to 0 (no turn)
+    z = (reference - q) / _TWO_PI
+    w = q if -0.5 < z < 0.5 else q + round(z) * _TWO_PI
+    if lower <= w <= upper:
+        return w
     k_lo = math.ceil((lower - q) / _TWO_PI - 1e-12)
     k_hi = math.floor((upper - q) / _TWO_PI + 1e-12)
     if k_lo > k_hi:
@@ -155,7 +161,7 @@ class URParameters:
         already exceeds the best complete branch is not worked out (with a warm start, one or two branches are),
         and scalar throughout (numpy's per-call cost would dominate on 6-vectors).
         """
-        pi, two_pi, wrap, bound_factor = _PI, _TWO_PI, wrap_joint, _PRUNE
+        pi, wrap, bound_factor = _PI, wrap_joint, _PRUNE
         (R00, R01, R02, px), (R10, R11, R12, py), (R20, R21, R22, pz) = rows[0], rows[1], rows[2]
         R00, R01, R02, px, R10, R11, R12, py = -R00, -R01, -R02, -px, -R10, -R11, -R12, -py
         r0, r1, r2, r3, r4, r5 = reference
@@ -173,20 +179,11 @@ class URParameters:
         best: tuple[float, ...] | None = None
         best_dist = best_bound = math.inf
         best_index = 8
-        # Each joint is wrapped inline as wrap_joint does: when its nearest turn lies within the limits, the
-        # clamps of the general formula do nothing and are skipped (k_lo <= k <= k_hi holds with their 1e-12
-        # slack); otherwise wrap_joint decides. A |z| < 1/2 rounds to 0 (no turn to add, the common case).
         shoulders = []
         for i, q1 in enumerate((psi + phi + pi / 2.0, psi - phi + pi / 2.0)):
-            w1 = (q1 + pi) % two_pi - pi
-            z = (r0 - w1) / two_pi
-            if not -0.5 < z < 0.5:
-                w1 += round(z) * two_pi
-            if not lo0 <= w1 <= hi0:
-                wrapped = wrap(q1, r0, lo0, hi0)
-                if wrapped is None:
-                    continue
-                w1 = wrapped
+            w1 = wrap(q1, r0, lo0, hi0)
+            if w1 is None:
+                continue
             shoulders.append(((w1 - r0) * (w1 - r0), i, q1, w1))
         if len(shoulders) == 2 and shoulders[1][0] < shoulders[0][0]:
             shoulders.reverse()
@@ -203,15 +200,9 @@ class URParameters:
             n6, m6 = -R01 * s1 + R11 * c1, R00 * s1 - R10 * c1
             wrists = []
             for j, q5, s5 in ((0, a5, sin_a5), (1, -a5, -sin_a5)):
-                w5 = (q5 + pi) % two_pi - pi
-                z = (r4 - w5) / two_pi
-                if not -0.5 < z < 0.5:
-                    w5 += round(z) * two_pi
-                if not lo4 <= w5 <= hi4:
-                    wrapped = wrap(q5, r4, lo4, hi4)
-                    if wrapped is None:
-                        continue
-                    w5 = wrapped
+                w5 = wrap(q5, r4, lo4, hi4)
+                if w5 is None:
+                    continue
                 wrists.append((lb1 + (w5 - r4) * (w5 - r4), j, s5, w5))
             if len(wrists) == 2 and wrists[1][0] < wrists[0][0]:
                 wrists.reverse()
@@ -219,15 +210,9 @@ class URParameters:
                 if lb5 > best_bound:
                     continue
                 q6 = r5 if abs(s5) < _WRIST_SINGULAR else math.atan2(n6 / s5, m6 / s5)
-                w6 = (q6 + pi) % two_pi - pi
-                z = (r5 - w6) / two_pi
-                if not -0.5 < z < 0.5:
-                    w6 += round(z) * two_pi
-                if not lo5 <= w6 <= hi5:
-                    wrapped = wrap(q6, r5, lo5, hi5)
-                    if wrapped is None:
-                        continue
-                    w6 = wrapped
+                w6 = wrap(q6, r5, lo5, hi5)
+                if w6 is None:
+                    continue
                 lb2 = lb5 + (w6 - r5) * (w6 - r5)
                 if lb2 > best_bound:
                     continue
@@ -244,15 +229,9 @@ class URParameters:
                 sin_a3, c3 = math.sin(a3), math.cos(a3)
                 elbows = []
                 for k, q3, s3 in ((0, a3, sin_a3), (1, -a3, -sin_a3)):
-                    w3 = (q3 + pi) % two_pi - pi
-                    z = (r2 - w3) / two_pi
-                    if not -0.5 < z < 0.5:
-                        w3 += round(z) * two_pi
-                    if not lo2 <= w3 <= hi2:
-                        wrapped = wrap(q3, r2, lo2, hi2)
-                        if wrapped is None:
-                            continue
-                        w3 = wrapped
+                    w3 = wrap(q3, r2, lo2, hi2)
+                    if w3 is None:
+                        continue
                     elbows.append((lb2 + (w3 - r2) * (w3 - r2), k, q3, s3, w3))
                 if len(elbows) == 2 and elbows[1][0] < elbows[0][0]:
                     elbows.reverse()
@@ -262,25 +241,13 @@ class URParameters:
                     if lb3 > best_bound:
                         continue
                     q2 = theta - math.atan2(L3 * s3, L2 + L3 * c3)
-                    w2 = (q2 + pi) % two_pi - pi
-                    z = (r1 - w2) / two_pi
-                    if not -0.5 < z < 0.5:
-                        w2 += round(z) * two_pi
-                    if not lo1 <= w2 <= hi1:
-                        wrapped = wrap(q2, r1, lo1, hi1)
-                        if wrapped is None:
-                            continue
-                        w2 = wrapped
+                    w2 = wrap(q2, r1, lo1, hi1)
+                    if w2 is None:
+                        continue
                     q4 = q234 - q2 - q3
-                    w4 = (q4 + pi) % two_pi - pi
-                    z = (r3 - w4) / two_pi
-                    if not -0.5 < z < 0.5:
-                        w4 += round(z) * two_pi
-                    if not lo3 <= w4 <= hi3:
-                        wrapped = wrap(q4, r3, lo3, hi3)
-                        if wrapped is None:
-                            continue
-                        w4 = wrapped
+                    w4 = wrap(q4, r3, lo3, hi3)
+                    if w4 is None:
+                        continue
                     e0, e1, e2, e3, e4, e5 = w1 - r0, w2 - r1, w3 - r2, w4 - r3, w5 - r4, w6 - r5
                     full = e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3 + e4 * e4 + e5 * e5
                     dist, index = math.sqrt(full), 4 * i + 2 * j + k
