@@ -15,7 +15,9 @@ ones (:mod:`~softsig_service.experiments.likelihood`), which carries the simulat
 
 **The search.** Optuna's TPE sampler (seeded), asked and told one parameter set at a time; the uncalibrated
 model (every parameter at its default) is the first set evaluated. The budget is in simulations: as many sets as
-``budget`` allows at the cost of one set. The best set by the objective is the calibrated model.
+``budget`` allows at the cost of one set. The best set by the objective is the calibrated model. A range narrowed
+past a parameter's default leaves the uncalibrated model out of the search; it is then simulated on the fitted
+cells apart.
 
 **Held out.** The cells any ``held_out`` selector matches are never simulated during the fit. After it, they are
 simulated ``test_trials`` times (their own seeds, the same for both models) with the calibrated and the
@@ -28,8 +30,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
 import shutil
+import tempfile
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -218,21 +220,28 @@ def _simulate_one(hand_toml: str, spec: CalibrationSpec, sim: Simulation, settin
     return bool(result.success)
 
 
-def _worker_init() -> None:
-    from softsig_service.gl_backend import prepare_mujoco
-
-    prepare_mujoco()
-
-
 @contextmanager
 def _runner(workers: int) -> Iterator[Callable[[Callable[..., bool], list[tuple[Any, ...]]], list[bool]]]:
     """A map over simulations: in this process for one worker, else a spawn pool kept for the whole calibration."""
+    from softsig_service.gl_backend import prepare_mujoco
+
     if workers <= 1:
-        _worker_init()
+        prepare_mujoco()
         yield lambda fn, args: [fn(*a) for a in args]
         return
-    with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"), initializer=_worker_init) as pool:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"), initializer=prepare_mujoco) as pool:
         yield lambda fn, args: list(pool.map(fn, *zip(*args, strict=True))) if args else []
+
+
+def _tally(
+    cells: Sequence[CellKey], sims: Sequence[Simulation], verdicts: Sequence[bool]
+) -> dict[CellKey, tuple[int, int]]:
+    """Simulated successes and simulations per cell of ``cells``."""
+    counts: dict[CellKey, list[int]] = {c: [0, 0] for c in cells}
+    for sim, ok in zip(sims, verdicts, strict=True):
+        counts[sim.cell][0] += int(ok)
+        counts[sim.cell][1] += 1
+    return {c: (v[0], v[1]) for c, v in counts.items()}
 
 
 def _score(
@@ -243,10 +252,7 @@ def _score(
     outcomes: RealOutcomes,
 ) -> tuple[float, dict[CellKey, tuple[int, int]], dict[CellKey, float]]:
     """The summed beta-binomial log-likelihood of ``cells``, the simulated counts and each cell's term."""
-    counts: dict[CellKey, list[int]] = {c: [0, 0] for c in cells}
-    for sim, ok in zip(sims, verdicts, strict=True):
-        counts[sim.cell][0] += int(ok)
-        counts[sim.cell][1] += 1
+    counts = _tally(cells, sims, verdicts)
     terms: dict[CellKey, float] = {}
     for c in cells:
         measured = [t for t in outcomes.trial_records(c) if t.offset is not None]
@@ -257,8 +263,8 @@ def _score(
             )
         else:
             k, n = real[c]
-            terms[c] = beta_binomial_logpmf(k, n, counts[c][0], counts[c][1])
-    return float(sum(terms.values())), {c: (v[0], v[1]) for c, v in counts.items()}, terms
+            terms[c] = beta_binomial_logpmf(k, n, *counts[c])
+    return float(sum(terms.values())), counts, terms
 
 
 @dataclass
@@ -355,6 +361,27 @@ def check_spec(spec: CalibrationSpec) -> tuple[list[Free], dict[str, float], lis
     return free, defaults, fitted, test, n_sets
 
 
+def _defaults_searched(free: Sequence[Free], defaults: Mapping[str, float]) -> bool:
+    """Whether the uncalibrated model lies in the searched ranges (then it is the first set evaluated; otherwise it
+    is evaluated on the fitted cells apart from the search)."""
+    return all(f.low <= defaults[f.parameter.name] <= f.high for f in free)
+
+
+def _planned(n_sets: int, fit: int, test: int, defaults_searched: bool) -> int:
+    """Simulations of a calibration: ``n_sets`` parameter sets of ``fit`` each, the uncalibrated model's own
+    ``fit`` when it is not among them, and the held-out ``test`` for both models."""
+    return n_sets * fit + (0 if defaults_searched else fit) + 2 * test
+
+
+def planned_simulations(spec: CalibrationSpec) -> int:
+    """How many simulations :func:`calibrate` runs for ``spec`` (checked by :func:`check_spec` first)."""
+    free, defaults, fitted, test, n_sets = check_spec(spec)
+    fit = len(plan_simulations(spec, fitted, spec.trials_per_cell, 0))
+    return _planned(
+        n_sets, fit, len(plan_simulations(spec, test, spec.test_trials, 1)), _defaults_searched(free, defaults)
+    )
+
+
 def calibrate(
     spec: CalibrationSpec,
     out: Path,
@@ -380,7 +407,8 @@ def calibrate(
     real = spec.outcomes.counts()
     fit_sims = plan_simulations(spec, fitted, spec.trials_per_cell, 0)
     test_sims = plan_simulations(spec, test, spec.test_trials, 1)
-    planned = n_sets * len(fit_sims) + 2 * len(test_sims)
+    searched = _defaults_searched(free, defaults)
+    planned = _planned(n_sets, len(fit_sims), len(test_sims), searched)
     done = 0
 
     def report(message: str) -> None:
@@ -401,7 +429,8 @@ def calibrate(
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     sampler = optuna.samplers.TPESampler(seed=spec.seed, n_startup_trials=max(2, min(10, n_sets // 3)))
     study = optuna.create_study(direction="maximize", sampler=sampler)
-    study.enqueue_trial({f.parameter.name: min(max(defaults[f.parameter.name], f.low), f.high) for f in free})
+    if searched:  # the uncalibrated model is the first set
+        study.enqueue_trial({f.parameter.name: defaults[f.parameter.name] for f in free})
     evaluations: list[dict[str, Any]] = []
     sim_counts: dict[str, dict[CellKey, tuple[int, int]]] = {}
     terms_of: dict[str, dict[CellKey, float]] = {}
@@ -410,11 +439,10 @@ def calibrate(
         for k in range(n_sets):
             trial = study.ask()
             chosen = {f.parameter.name: trial.suggest_float(f.parameter.name, f.low, f.high) for f in free}
-            values = {**defaults, **chosen}
-            verdicts = run(values, fit_sims, f"{k:03d}")
+            label = f"{k:03d}"
+            verdicts = run({**defaults, **chosen}, fit_sims, label)
             value, counts, terms = _score(fitted, fit_sims, verdicts, real, spec.outcomes)
             study.tell(trial, value)
-            label = f"{k:03d}"
             sim_counts[label], terms_of[label] = counts, terms
             row = {"set": k, "values": chosen, "loglik": value, "cells": [[*c, *counts[c]] for c in fitted]}
             evaluations.append(row)
@@ -424,7 +452,15 @@ def calibrate(
                 best_value, best_key = value, label
             report(f"parameter set {k + 1} of {n_sets}: log-likelihood {value:.2f} (best {best_value:.2f})")
         best = {**defaults, **evaluations[int(best_key)]["values"]}
-        models = {"uncalibrated": (defaults, "000"), "calibrated": (best, best_key)}
+        uncalibrated = "000"
+        if not searched:  # a narrowed range left the uncalibrated model out of the search: evaluate it apart
+            uncalibrated = "uncalibrated"
+            report("fitted cells with the uncalibrated model (outside the searched ranges)")
+            verdicts = run(defaults, fit_sims, uncalibrated)
+            _, sim_counts[uncalibrated], terms_of[uncalibrated] = _score(
+                fitted, fit_sims, verdicts, real, spec.outcomes
+            )
+        models = {"uncalibrated": (defaults, uncalibrated), "calibrated": (best, best_key)}
         heldout: dict[str, float] = {}
         test_counts: dict[str, dict[CellKey, tuple[int, int]]] = {}
         test_terms: dict[str, dict[CellKey, float]] = {}
@@ -520,18 +556,11 @@ def synthetic_outcomes(
         ),
     )
     sims = plan_simulations(probe, list(cells), trials, 2)
-    folder = Path(os.environ.get("TMPDIR", "/tmp")) / f"softsig_synthetic_{os.getpid()}_{seed}"
-    shutil.rmtree(folder, ignore_errors=True)
-    toml = write_variant(hand.folder, hand.manifest, folder / "truth", "truth", {**defaults, **values}, {})
-    try:
+    with tempfile.TemporaryDirectory(prefix="softsig_synthetic_") as folder:
+        toml = write_variant(hand.folder, hand.manifest, Path(folder) / "truth", "truth", {**defaults, **values}, {})
         with _runner(workers) as runner:
             verdicts = runner(_simulate_one, [(str(toml), probe, s, settings) for s in sims])
-    finally:
-        shutil.rmtree(folder, ignore_errors=True)
-    counts: dict[CellKey, list[int]] = {c: [0, 0] for c in cells}
-    for s, ok in zip(sims, verdicts, strict=True):
-        counts[s.cell][0] += int(ok)
-        counts[s.cell][1] += 1
+    counts = _tally(cells, sims, verdicts)
     # a noiseless cell is one simulation: its every trial is that outcome
     return RealOutcomes(
         cells=tuple(

@@ -255,3 +255,22 @@ def test_trials_with_measured_offsets_are_simulated_at_them(tmp_path: Path) -> N
     assert first["cells"] == [["box", "C", 0.0, 0.0, 1, 2]]  # the two simulations: carried at 0, missed at 6 cm
     # each trial predicted by its own simulation: (1 + 1/2) / 2 for the carried one, the same for the missed one
     assert first["loglik"] == pytest.approx(2 * math.log(0.75), abs=1e-12)
+
+
+def test_a_range_narrowed_past_the_default_still_scores_the_uncalibrated_model(tmp_path: Path) -> None:
+    """With thumb_rest searched in [0, 0.1] rad only, the uncalibrated model (0.384 rad) is simulated apart: S
+    drops the nominal box there and carries it at every searched angle (docs/calibration.md's sweep)."""
+    spec = CalibrationSpec(
+        hand=HAND,
+        outcomes=RealOutcomes(cells=(RealCell(object="box", strategy="S", trials=20, successes=17),)),
+        parameters=("thumb_rest",),
+        ranges={"thumb_rest": (0.0, 0.1)},
+        budget=2,
+        seed=4,
+    )
+    result = calibrate(spec, tmp_path / "cal", workers=1).to_json_dict()
+    assert all(0.0 <= e["values"]["thumb_rest"] <= 0.1 for e in result["evaluations"])
+    (cell,) = result["cells"]
+    assert cell["simulated"] == {"uncalibrated": [0, 1], "calibrated": [1, 1]}
+    assert result["fitted_loglik"]["uncalibrated"] < result["fitted_loglik"]["calibrated"]
+    assert result["simulations"] == 2 + 1  # two searched sets, then the uncalibrated model apart

@@ -83,7 +83,7 @@ def _outcomes_version(ctx: Any, hand: str, version: int | None) -> repo.Signatur
 def _check(ctx: Any, body: CalibrationIn, hand_ref: str) -> tuple[dict[str, Any], dict[str, Any], int]:
     """The job's parameters, checked as the job will run them (422 naming the field), the outcomes it fits and
     its simulations."""
-    from softsig_service.experiments.calibration import CalibrationSpec, check_spec, plan_simulations
+    from softsig_service.experiments.calibration import CalibrationSpec, planned_simulations
 
     rec = _outcomes_version(ctx, body.hand, body.outcomes_version)
     outcomes = RealOutcomes.model_validate(rec.data)
@@ -103,9 +103,7 @@ def _check(ctx: Any, body: CalibrationIn, hand_ref: str) -> tuple[dict[str, Any]
         name=name,
         outcomes_version=rec.version,
     )
-    _, _, fitted, test, n_sets = check_spec(spec)
-    sims = n_sets * len(plan_simulations(spec, fitted, spec.trials_per_cell, 0))
-    sims += 2 * len(plan_simulations(spec, test, spec.test_trials, 1))
+    sims = planned_simulations(spec)
     params = {
         "hand": body.hand,
         "outcomes_version": rec.version,
