@@ -50,9 +50,11 @@ def error_choices(err: Mapping[str, Any]) -> list[str] | None:
 
 
 def invalid_input(exc: ValidationError, root: str, tags: Collection[str] = ()) -> InvalidInput:
-    """The first error of ``exc`` as :class:`InvalidInput`, its field prefixed with ``root`` (e.g. ``object``)."""
+    """The first error of ``exc`` as :class:`InvalidInput`, its field prefixed with ``root`` (e.g. ``object``; ""
+    names the field from the validated document's top)."""
     err = exc.errors()[0]
     _, path = field_path(tuple(err.get("loc", ())), tags)
-    path = root if path == "$" else f"{root}.{path}" if not path.startswith("[") else f"{root}{path}"
+    if root:
+        path = root if path == "$" else f"{root}.{path}" if not path.startswith("[") else f"{root}{path}"
     value = None if err.get("type") == "missing" else err.get("input")
     return InvalidInput(str(err.get("msg", "invalid value")), field=path, value=value, choices=error_choices(err))

@@ -11,12 +11,12 @@ planner's. Every bad value raises :class:`InvalidInput` naming the field (``cell
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
-from softsig_service.errors import InvalidInput
+from softsig_service.validation import invalid_input
 
 MAX_SIGMA_R = math.pi
 """[rad] the largest yaw noise a cell may state."""
@@ -159,25 +159,12 @@ def split_cells(keys: Sequence[CellKey], held_out: Sequence[CellSelector]) -> tu
     return [k for k in keys if k not in test], test
 
 
-def _field_of(loc: tuple[int | str, ...]) -> str:
-    out = ""
-    for part in loc:
-        out += f"[{part}]" if isinstance(part, int) else ("." if out else "") + str(part)
-    return out or "$"
-
-
 def parse_model(model: type[BaseModel], data: Any, *, prefix: str = "") -> Any:
     """Validate ``data`` as ``model``; :class:`InvalidInput` naming the first bad field (``prefix`` before it)."""
     try:
         return model.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        field = _field_of(tuple(err["loc"]))
-        field = f"{prefix}.{field}" if prefix and field != "$" else prefix or field
-        value = err.get("input") if err["type"] != "missing" else None
-        if isinstance(value, Mapping | list):
-            value = None
-        raise InvalidInput(str(err["msg"]).removeprefix("Value error, "), field=field, value=value) from None
+        raise invalid_input(exc, prefix) from None
 
 
 def outcomes_from_json(data: Any) -> RealOutcomes:
