@@ -15,7 +15,7 @@ from typing import Any
 
 import tomli_w
 
-from softsig_service.errors import InvalidInput
+from softsig_service.errors import InvalidInput, InvalidManifest
 from softsig_service.hands.manifest import HandManifest, manifest_from_dict
 
 NOT_COPIED = ("capture", "preview.png", "hand.toml")
@@ -42,8 +42,8 @@ def variant_manifest(
     data["calibration"] = cal
     try:
         manifest_from_dict(data, source=f"{name}/hand.toml")
-    except Exception as exc:  # InvalidManifest names the field; here it is a value the caller chose
-        raise InvalidInput(str(exc), field=getattr(exc, "field", "values")) from None
+    except InvalidManifest as exc:  # it names the manifest's field; here it is a value the caller chose
+        raise InvalidInput(exc.message, field=exc.field, value=exc.value) from None
     return data
 
 

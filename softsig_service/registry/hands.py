@@ -6,10 +6,13 @@ are compared strongly; ``*`` matches any current representation. Built-in hands 
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
+from pathlib import Path
 from typing import Any
 
 from sqlalchemy import bindparam, select
@@ -257,3 +260,11 @@ def delete_hand(reg: Registry, name: str, *, if_match: str | None) -> HandRecord
         record = _hand(row)
         s.delete(row)
         return record
+
+
+def remove_hand_folder(folder: str | Path | None) -> None:
+    """Remove a stored revision's folder, and the hand's folder above it when that is left empty."""
+    if folder is not None:
+        shutil.rmtree(folder, ignore_errors=True)
+        with contextlib.suppress(OSError):
+            Path(folder).parent.rmdir()

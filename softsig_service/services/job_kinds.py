@@ -79,7 +79,7 @@ def register_calibrated_variant(registry: Registry, params: dict[str, Any], resu
             folder=str(folder),
         )
     except BaseException:
-        shutil.rmtree(folder.parent if not any(folder.parent.iterdir()) else folder, ignore_errors=True)
+        repo.remove_hand_folder(folder)
         raise
     return {**result, "variant": {"hand": rec.name, "links": {"hand": f"/v1/hands/{rec.name}"}}}
 

@@ -17,9 +17,7 @@ description that reads outside its folder, reads the environment or runs a comma
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
-import shutil
 import tomllib
 import uuid
 from pathlib import Path as FsPath
@@ -184,17 +182,9 @@ async def _store(
     try:
         listing = await run_in_threadpool(write)
     except BaseException:
-        _remove(folder)
+        repo.remove_hand_folder(folder)
         raise
     return folder, listing
-
-
-def _remove(folder: str | FsPath | None) -> None:
-    """Remove a revision's folder, and the hand's folder above it when that is left empty."""
-    if folder is not None:
-        shutil.rmtree(folder, ignore_errors=True)
-        with contextlib.suppress(OSError):
-            FsPath(folder).parent.rmdir()
 
 
 @router.get("/hands", response_model=HandList, **read_route(), summary="List hands")
@@ -262,7 +252,7 @@ async def _register(
             )
         )  # fmt: skip
     except BaseException:
-        _remove(folder)
+        repo.remove_hand_folder(folder)
         raise
     response.headers["Location"] = f"/v1/hands/{record.name}"
     return hand_out(with_etag(response, record))
@@ -337,9 +327,9 @@ async def replace_hand(
             )
         )  # fmt: skip
     except BaseException:
-        _remove(folder)
+        repo.remove_hand_folder(folder)
         raise
-    _remove(old)
+    repo.remove_hand_folder(old)
     return hand_out(with_etag(response, record))
 
 
@@ -357,5 +347,5 @@ async def replace_hand(
 def delete_hand(ctx: Ctx, hand: HandPath, if_match: IfMatchRequired) -> Response:
     """Delete an uploaded hand, its signature versions and its files. Stored plans of it stay."""
     record = repo.delete_hand(ctx.registry, hand, if_match=if_match)
-    _remove(record.folder)
+    repo.remove_hand_folder(record.folder)
     return Response(status_code=204)
