@@ -35,6 +35,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import pydantic_core
 from sqlalchemy import Connection, Engine, create_engine, event, text
 from sqlalchemy.engine import make_url
 from sqlalchemy.orm import Session, sessionmaker
@@ -50,14 +51,24 @@ def _is_sqlite(url: str) -> bool:
     return make_url(url).get_backend_name() == "sqlite"
 
 
+def json_text(value: Any) -> str:
+    """``value`` as the JSON text a JSON column stores: what ``json.dumps`` gives (NaN and Infinity written as
+    JavaScript constants, as ``json.dumps`` does), by pydantic-core's serialiser, several times faster on a plan's
+    result; without the blanks between items and with non-ASCII characters as they are."""
+    return pydantic_core.to_json(value, inf_nan_mode="constants").decode()
+
+
 def make_engine(url: str, *, busy_timeout: float = 10.0) -> Engine:
-    """An engine for ``url``; a SQLite file's folder is created and its connections are configured (see above)."""
+    """An engine for ``url``; a SQLite file's folder is created and its connections are configured (see above).
+    JSON columns are written by :func:`json_text`."""
     if not _is_sqlite(url):
-        return create_engine(url, pool_pre_ping=True)
+        return create_engine(url, pool_pre_ping=True, json_serializer=json_text)
     u = make_url(url)
     if u.database and u.database != ":memory:":
         Path(u.database).expanduser().parent.mkdir(parents=True, exist_ok=True)
-    engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": busy_timeout})
+    engine = create_engine(
+        url, connect_args={"check_same_thread": False, "timeout": busy_timeout}, json_serializer=json_text
+    )
     timeout_ms = int(busy_timeout * 1000)
 
     @event.listens_for(engine, "connect")
