@@ -80,7 +80,17 @@ from softsig_service.arm.trajectory import APPROACH_TIME, LIFT, LIFT_TIME, WAYPO
 from softsig_service.errors import InvalidInput
 from softsig_service.hands.closure import closure_command
 from softsig_service.objects import TableObject
+from softsig_service.simulation.approach_replay import (
+    FAR,
+    Prefix,
+    PrefixRecorder,
+    Replay,
+    cached_prefix,
+    replay,
+    restore,
+)
 from softsig_service.simulation.diagnosis import snapshot
+from softsig_service.simulation.scene import build_object_alone
 from softsig_service.simulation.scene_model import ContactSummary, Scene
 
 FloatArray = NDArray[np.float64]
@@ -115,6 +125,9 @@ class RolloutConfig:
         waypoints: number of IK waypoints along each Cartesian line (approach, lift), ends included.
         early_stop: end a trial as soon as its outcome is decided (:data:`STOP_RULES`); the verdict is the one
             the full schedule gives (``tests/simulation/test_early_stop.py`` checks it on every Table I cell).
+        replay_approach: take the robot's motion up to the hand's nearing the object from a recording shared by
+            the trials of one plan (:mod:`softsig_service.simulation.approach_replay`; only when nothing records
+            frames or phases and the scene has no obstacles).
     """
 
     lift: float = LIFT
@@ -125,6 +138,7 @@ class RolloutConfig:
     control_period: float = 0.01
     waypoints: int = WAYPOINTS
     early_stop: bool = True
+    replay_approach: bool = True
 
     def __post_init__(self) -> None:
         for name in ("lift", "approach_time", "lift_time", "control_period"):
@@ -267,9 +281,11 @@ class Run:
     the object's starting height (world z). :func:`simulate` drives it through the trial's phases.
     """
 
-    def __init__(self, scene: Scene, obj: TableObject, q_start: FloatArray, cfg: RolloutConfig) -> None:
+    def __init__(
+        self, scene: Scene, obj: TableObject, q_start: FloatArray, cfg: RolloutConfig, pose: FloatArray | None = None
+    ) -> None:
         self.scene = scene
-        self.data = scene.make_data(q_start, obj.primitive_pose)
+        self.data = scene.make_data(q_start, obj.primitive_pose if pose is None else pose)
         self.z0 = float(scene.object_position(self.data)[2])
         self.out = SimOutcome()
         dt = float(scene.model.opt.timestep)
@@ -278,6 +294,28 @@ class Run:
         self.early_stop = cfg.early_stop and scene.obstacle_geoms.size == 0
         self.object_dof = int(scene.model.jnt_dofadr[scene.model.body_jntadr[scene.object_body]])
         self.gravity = float(np.linalg.norm(scene.model.opt.gravity))
+        self.done = 0  # control ticks run (or replayed) so far
+        self.replayed: Replay | None = None
+        self.prefix: Prefix | None = None
+
+    def resume(self, prefix: Prefix, rp: Replay) -> None:
+        """Continue from tick ``rp.tick`` of a recorded approach (:mod:`softsig_service.simulation.approach_replay`):
+        the data set there; the ticks before are replayed by :meth:`phase` from the record."""
+        restore(self.scene, self.data, prefix, rp)
+        self.replayed, self.prefix = rp, prefix
+        t_hit = prefix.arm_collision_time
+        if t_hit is not None and t_hit <= float(prefix.time[rp.tick]) + 1e-9:
+            self.out.arm_collision_time = t_hit
+
+    def in_replay(self) -> bool:
+        """Whether every tick so far was replayed (the data holds the resumed state, not yet stepped)."""
+        return self.replayed is not None and 0 < self.done <= self.replayed.tick
+
+    def object_height(self) -> float:
+        """[m] the object's world z after the last tick (replayed or simulated)."""
+        if self.replayed is not None and self.in_replay():
+            return float(self.replayed.heights[self.done - 1])
+        return float(self.scene.object_position(self.data)[2])
 
     def step(self, grasping: bool) -> bool:
         """One control tick with the controls as set; False if the trial ends here (the simulation diverged, or
@@ -333,6 +371,11 @@ class Run:
         data, scene = self.data, self.scene
         n = max(1, math.ceil(duration / self.tick - 1e-9))
         for k in range(n):
+            self.done += 1
+            rp = self.replayed
+            if rp is not None and self.done <= rp.tick:  # replayed: only the object's rise is recorded
+                self.out.max_rise = max(self.out.max_rise, float(rp.heights[self.done - 1]) - self.z0)
+                continue
             t = (k + 1) * self.tick
             data.ctrl[scene.arm_actuators] = arm(t)
             data.ctrl[scene.closure_actuators] = hand(t)
@@ -345,7 +388,7 @@ class Run:
     def settled(self) -> None:
         """Record how far the object fell before the closure; one that fell more than :data:`SETTLE_DROP` (given
         above the table) has its rise counted from where it came to rest."""
-        z = float(self.scene.object_position(self.data)[2])
+        z = self.object_height()
         self.out.settle_drop = self.z0 - z
         if self.out.settle_drop > SETTLE_DROP:
             self.z0 = z
@@ -367,6 +410,75 @@ class Run:
         return out
 
 
+PhaseTargets = tuple[float, Callable[[float], FloatArray], Callable[[float], FloatArray]]
+"""A phase's duration [s] and its arm and closure targets as functions of the phase time [s]."""
+
+
+def _approach_and_closure(scene: Scene, approach: FloatArray, cfg: RolloutConfig) -> tuple[PhaseTargets, PhaseTargets]:
+    """The approach (the arm along ``approach``, the hand open) and the closure (the arm at the grasp, the closure
+    ramp) of the schedule (module docstring)."""
+    closure = scene.hand.manifest.closure
+    c_open, q_grasp = scene.closure_open, approach[-1]
+
+    def along(t: float) -> FloatArray:
+        return interp(approach, quintic(t / cfg.approach_time))
+
+    def open_hand(_t: float) -> FloatArray:
+        return c_open
+
+    def at_grasp(_t: float) -> FloatArray:
+        return q_grasp
+
+    def ramp(t: float) -> FloatArray:
+        return closure_command(scene.hand, t, closure.duration)
+
+    return (cfg.approach_time, along, open_hand), (closure.duration + closure.settle, at_grasp, ramp)
+
+
+def record_prefix(scene: Scene, obj: TableObject, approach: FloatArray, cfg: RolloutConfig) -> Prefix:
+    """The approach and the closure of ``approach`` simulated with ``obj`` moved :data:`FAR` along world x (out of
+    the robot's reach), every tick recorded (:class:`~softsig_service.simulation.approach_replay.Prefix`)."""
+    far = np.array(obj.primitive_pose, dtype=np.float64)
+    far[0, 3] += FAR
+    run = Run(scene, obj, approach[0], cfg, pose=far)
+    recorder = PrefixRecorder(scene, run.data)
+    n_approach = -1  # not reached: the recording ended before the approach did (a diverged simulation)
+    for i, (duration, arm, hand) in enumerate(_approach_and_closure(scene, approach, cfg)):
+        if not run.phase(duration, arm, hand, False, recorder.tick):
+            break
+        if i == 0:
+            n_approach = run.done
+    return recorder.prefix(n_approach, run.out.arm_collision_time)
+
+
+def _replayed_start(run: Run, obj: TableObject, approach: FloatArray, cfg: RolloutConfig) -> None:
+    """Resume ``run`` where the shared recording of its plan lets it (:mod:`~softsig_service.simulation.
+    approach_replay`), or leave it at the start."""
+    scene = run.scene
+    closure = scene.hand.manifest.closure
+    schedule = (run.nsub, cfg.approach_time, cfg.control_period, closure.duration, closure.settle)
+    prefix = cached_prefix(scene, schedule, approach, lambda: record_prefix(scene, obj, approach, cfg))
+    if prefix.n < 2:
+        return
+    rp = replay(scene, build_object_alone(obj, scene), run.data, prefix, run.nsub)
+    if rp.tick > 0:
+        run.resume(prefix, rp)
+
+
+def _replayed_snapshot(run: Run, name: str) -> dict[str, Any]:
+    """The diagnosis snapshot at the end of a replayed approach: the recorded robot with the replayed object."""
+    scene, rp, prefix = run.scene, run.replayed, run.prefix
+    assert rp is not None and rp.approach_end is not None and prefix is not None
+    k, a = prefix.n_approach, scene.object_qpos
+    probe = mujoco.MjData(scene.model)
+    probe.qpos[:], probe.qvel[:] = prefix.qpos[k], prefix.qvel[k]
+    probe.act[:], probe.ctrl[:] = prefix.act[k], prefix.ctrl[k]
+    probe.qpos[a : a + 7] = rp.approach_end
+    probe.time = float(prefix.time[k])
+    mujoco.mj_forward(scene.model, probe)
+    return snapshot(scene, probe, name)
+
+
 def simulate(
     scene: Scene,
     obj: TableObject,
@@ -383,8 +495,10 @@ def simulate(
     data = run.data
     if on_phase is not None:
         on_phase.start(scene, data, (approach[0], approach[-1], lift[-1]))
-    closure = scene.hand.manifest.closure
-    c_open, c_closed = scene.closure_open, scene.closure_closed
+    if (cfg.replay_approach and on_frame is None and on_phase is None and scene.obstacle_geoms.size == 0
+            and scene.object_geoms.size == 1):  # fmt: skip
+        _replayed_start(run, obj, approach, cfg)
+    c_closed = scene.closure_closed
     next_frame = 0.0
 
     def frame() -> None:
@@ -394,16 +508,11 @@ def simulate(
             next_frame += frame_period
 
     frame()
-    q_grasp, q_top = approach[-1], lift[-1]
-
-    def open_hand(_t: float) -> FloatArray:
-        return c_open
+    q_top = lift[-1]
+    (t_approach, along, open_hand), (t_closure, at_grasp, ramp) = _approach_and_closure(scene, approach, cfg)
 
     def closed_hand(_t: float) -> FloatArray:
         return c_closed
-
-    def ramp(t: float) -> FloatArray:
-        return closure_command(scene.hand, t, closure.duration)
 
     def phase(
         duration: float, arm: Callable[[float], FloatArray], hand: Callable[[float], FloatArray], grasping: bool
@@ -411,15 +520,16 @@ def simulate(
         return run.phase(duration, arm, hand, grasping, frame)
 
     def seen(name: str) -> None:
-        run.out.phases.append(snapshot(scene, data, name))
+        shot = _replayed_snapshot(run, name) if run.in_replay() else snapshot(scene, data, name)
+        run.out.phases.append(shot)
         if on_phase is not None:
             on_phase.phase_end(scene, data, run.out.phases[-1])
 
-    ok = phase(cfg.approach_time, lambda t: interp(approach, quintic(t / cfg.approach_time)), open_hand, False)
+    ok = phase(t_approach, along, open_hand, False)
     if ok:
         run.settled()
         seen("approach")
-    ok = ok and phase(closure.duration + closure.settle, lambda _t: q_grasp, ramp, False)
+    ok = ok and phase(t_closure, at_grasp, ramp, False)
     if ok:
         run.out.touching_after_close = scene.contact_summary(data).object_hand
         seen("closure")

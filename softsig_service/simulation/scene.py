@@ -154,6 +154,18 @@ def _add_free_body(spec: mujoco.MjSpec, name: str, obj: TableObject, rgba: list[
     geom.rgba = rgba
 
 
+def _add_table(spec: mujoco.MjSpec, table_height: float) -> None:
+    """The table: the plane z = ``table_height`` [m], colliding with the environment and the arm."""
+    table = spec.worldbody.add_geom(name=TABLE_GEOM)
+    table.type = mujoco.mjtGeom.mjGEOM_PLANE
+    table.size = [*TABLE_HALF_SIZE, 0.05]
+    table.pos = [0.3, 0.0, table_height]
+    table.friction = [TABLE_FRICTION, 0.005, 0.0001]
+    table.contype = ENV_BIT
+    table.conaffinity = ENV_BIT | ARM_BIT
+    table.rgba = [0.78, 0.7, 0.58, 1.0]
+
+
 def _compose(hand_ref: str, obj: TableObject, settings: Settings, obstacles: Sequence[TableObject] = ()) -> Scene:
     spec = _ur5_spec(settings.robots_dir)
     spec.modelname = "softsig_validation"
@@ -173,14 +185,7 @@ def _compose(hand_ref: str, obj: TableObject, settings: Settings, obstacles: Seq
     spec.attach(hand_spec, prefix=HAND_PREFIX, frame=frame)
 
     th = obj.table_height
-    table = spec.worldbody.add_geom(name=TABLE_GEOM)
-    table.type = mujoco.mjtGeom.mjGEOM_PLANE
-    table.size = [*TABLE_HALF_SIZE, 0.05]
-    table.pos = [0.3, 0.0, th]
-    table.friction = [TABLE_FRICTION, 0.005, 0.0001]
-    table.contype = ENV_BIT
-    table.conaffinity = ENV_BIT | ARM_BIT
-    table.rgba = [0.78, 0.7, 0.58, 1.0]
+    _add_table(spec, th)
     light = spec.worldbody.add_light(name="key")
     light.pos = [0.6, -0.6, 1.5]
     light.dir = [-0.3, 0.3, -1.0]
@@ -302,3 +307,34 @@ OBSTACLE_BODY = "obstacle_"
 _CACHE: dict[tuple[object, ...], Scene] = {}
 _CACHE_SIZE = 32
 _CACHE_LOCK = threading.Lock()
+
+
+def build_object_alone(obj: TableObject, scene: Scene) -> mujoco.MjModel:
+    """The object of ``scene`` alone on its table: the same table, the same free body (shape, mass, friction) and
+    the same simulation options as ``scene.model``, nothing else; its free joint is qpos 0-6 and dofs 0-5. An object
+    the hand does not touch moves in it as in the scene (MuJoCo solves the object's constraint island apart from the
+    robot's; the two agree to about 1e-11 m over a second, the order of floating-point rounding:
+    ``tests/simulation/test_approach_replay.py``). Compiled once per shape and options (thread-safe)."""
+    opt = scene.model.opt
+    options = (float(opt.timestep), int(opt.integrator), int(opt.cone), float(opt.impratio), int(opt.jacobian),
+               tuple(float(g) for g in opt.gravity))  # fmt: skip
+    key = ("object_alone", _shape_key(obj), options)
+    with _CACHE_LOCK:
+        model = _ALONE.get(key)
+        if model is None:
+            spec = mujoco.MjSpec()
+            spec.modelname = "softsig_object_alone"
+            spec.compiler.degree = False
+            spec.option.timestep, spec.option.integrator, spec.option.cone = options[0], options[1], options[2]
+            spec.option.impratio, spec.option.jacobian = options[3], options[4]
+            spec.option.gravity = list(options[5])
+            _add_table(spec, obj.table_height)
+            _add_free_body(spec, OBJECT_BODY, obj, [0.85, 0.35, 0.2, 1.0], at_pose=False)
+            model = spec.compile()
+            if len(_ALONE) >= _CACHE_SIZE:
+                _ALONE.pop(next(iter(_ALONE)))
+            _ALONE[key] = model
+    return model
+
+
+_ALONE: dict[tuple[object, ...], mujoco.MjModel] = {}
