@@ -60,6 +60,12 @@ lying at rest on the table out of the rising hand's reach (its verdict, ``droppe
 the full schedule gives; the stop is recorded in :attr:`SimOutcome.stopped`). A carried object is always held to
 the end of the hold.
 
+**Approach replay** (:attr:`RolloutConfig.replay_approach`, on by default): the trials of one plan follow the same
+joint targets, so the robot's motion until it nears the object is recorded once per process and plan, and a trial
+simulates only its object (alone on the table) up to there and resumes the full scene at that tick
+(:mod:`softsig_service.simulation.approach_replay`: the robot's state there is the full simulation's bit for bit,
+the object's to about 1e-11 m). Off when frames or phases are recorded or the scene has obstacles.
+
 A trial is deterministic for a seed: same seed, same perturbation, same plan, same simulation, same outcome
 (MuJoCo is deterministic on one machine and build).
 """
