@@ -99,10 +99,9 @@ def hand_stamp(reg: Registry, name: str) -> tuple[Any, ...] | None:
     """What every field of hand ``name``'s record is determined by: ``(name, revision, created_at, updated_at,
     signature_count)`` (a new revision for new files or info, a new incarnation for a re-creation, the count and
     time for a new signature); None if there is none. One indexed row, no JSON column decoded (SQLAlchemy Core):
-    the key of a reader's cache of what it makes of the record (:func:`stamp_of`)."""
-    with reg.read_core() as conn:
-        row = conn.execute(_STAMP_QUERY, {"name": name}).one_or_none()
-    return None if row is None else tuple(row)
+    the key of a reader's cache of what it makes of the record (:func:`stamp_of`). Read by
+    :meth:`Registry.fetch_one`."""
+    return reg.fetch_one(_STAMP_QUERY, {"name": name})
 
 
 def stamp_of(record: HandRecord) -> tuple[Any, ...]:
@@ -138,14 +137,14 @@ def get_hand(reg: Registry, name: str, *, field: str = "hand") -> HandRecord:
 def hand_ref(reg: Registry, name: str, *, field: str = "hand") -> HandRef:
     """The name, revision and manifest of hand ``name``; :class:`HandNotFound` as :func:`get_hand` if there is none.
 
-    One indexed row of three columns, read with SQLAlchemy Core: no ORM session, no JSON column decoded (a plan
-    request's path, where :func:`get_hand` costs about three times as much)."""
-    with reg.read_core() as conn:
-        row = conn.execute(_REF_QUERY, {"name": name}).one_or_none()
+    One indexed row of four columns (:meth:`Registry.fetch_one`): no ORM session, no JSON column decoded (a plan
+    request's path, where :func:`get_hand` costs several times as much)."""
+    row = reg.fetch_one(_REF_QUERY, {"name": name})
     if row is None:  # HandNotFound with the registered names as choices (or a hand registered meanwhile)
         rec = get_hand(reg, name, field=field)
         return HandRef(rec.name, rec.revision, rec.manifest_path, rec.token)
-    return HandRef(row.name, row.revision, row.manifest_path, revision_token(row.name, row.revision, row.created_at))
+    ref_name, revision, manifest_path, created_at = row
+    return HandRef(ref_name, revision, manifest_path, revision_token(ref_name, revision, created_at))
 
 
 def hand_names(reg: Registry) -> list[str]:

@@ -52,10 +52,9 @@ _STAMP = select(_PLANS.c.created_at).where(_PLANS.c.id == bindparam("plan_id"))
 
 def plan_stamp(reg: Registry, plan_id: str) -> datetime | None:
     """When the plan ``plan_id`` was stored (None: there is none): a stored plan never changes, so ``(id,
-    created_at)`` names its content. One indexed column, no JSON decoded (SQLAlchemy Core)."""
-    with reg.read_core() as conn:
-        value = conn.execute(_STAMP, {"plan_id": plan_id}).scalar_one_or_none()
-    return None if value is None else value
+    created_at)`` names its content. One indexed column, no JSON decoded (:meth:`Registry.fetch_one`)."""
+    row = reg.fetch_one(_STAMP, {"plan_id": plan_id})
+    return None if row is None else row[0]
 
 
 def get_plan(reg: Registry, plan_id: str) -> PlanRecord:

@@ -202,13 +202,13 @@ _NEWEST_OF_OBJECT = (
 
 def newest_of_object(reg: Registry, hand: str, kind: str, object_digest: str) -> tuple[int, str] | None:
     """The version and ETag (:attr:`SignatureRecord.etag`) of :func:`signature_of_object`'s signature, or None
-    (no such hand, or no such signature): one indexed query with SQLAlchemy Core, no JSON decoded, for a reader
-    that keeps what it makes of the signature's data by its ETag (which names its content)."""
-    with reg.read_core() as conn:
-        row = conn.execute(_NEWEST_OF_OBJECT, {"hand": hand, "kind": kind, "digest": object_digest}).one_or_none()
+    (no such hand, or no such signature): one indexed query (:meth:`Registry.fetch_one`), no JSON decoded, for a
+    reader that keeps what it makes of the signature's data by its ETag (which names its content)."""
+    row = reg.fetch_one(_NEWEST_OF_OBJECT, {"hand": hand, "kind": kind, "digest": object_digest})
     if row is None:
         return None
-    return int(row.version), f'"{hand}.v{row.version}.{incarnation(row.created_at)}"'
+    version, created_at = row
+    return int(version), f'"{hand}.v{version}.{incarnation(created_at)}"'
 
 
 def fill_object_digests(reg: Registry, digest_of: Callable[[dict[str, Any]], str | None]) -> int:

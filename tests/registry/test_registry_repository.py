@@ -8,6 +8,7 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from db_backends import Backend
@@ -327,22 +328,60 @@ def test_a_plans_hand_reference_and_stored_plan_read_back(reg: Registry) -> None
     assert stored.created_at.utcoffset() is not None and not stored.success
 
 
+def test_the_hot_reads_give_what_core_and_the_records_give(reg: Registry) -> None:
+    """``Registry.fetch_one`` (the stamps, ``hand_ref``, ``newest_of_object``) gives the row a Core ``execute``
+    gives, timestamps timezone-aware; a hand's stamp equals ``stamp_of`` its record (the answer caches' keys meet)
+    and changes with a new revision and a new signature; a plan's stamp is its ``created_at``; no row is None."""
+    from softsig_service.registry.hands import _STAMP_QUERY
+    from softsig_service.registry.signatures import _NEWEST_OF_OBJECT
+
+    _hand(reg, "h1")
+    stamp = repo.hand_stamp(reg, "h1")
+    assert stamp == repo.stamp_of(repo.get_hand(reg, "h1")) and stamp is not None
+    assert stamp[2].utcoffset() is not None
+    with reg.read_core() as conn:
+        assert stamp == tuple(conn.execute(_STAMP_QUERY, {"name": "h1"}).one())
+    assert repo.hand_stamp(reg, "nope") is None and repo.plan_stamp(reg, "0" * 32) is None
+    full = repo.get_hand(reg, "h1")
+    repo.replace_hand(reg, "h1", if_match=full.etag, manifest_path="/y/h1/hand.toml", folder="/y", info={}, files=[])
+    replaced = repo.hand_stamp(reg, "h1")
+    assert replaced != stamp and replaced == repo.stamp_of(repo.get_hand(reg, "h1"))
+    assert repo.newest_of_object(reg, "h1", "capture", "d1") is None
+    sig = repo.add_signature(reg, "h1", kind="capture", method="m", source="computed", data={}, object_digest="d1")
+    assert repo.newest_of_object(reg, "h1", "capture", "d1") == (sig.version, sig.etag)
+    with reg.read_core() as conn:
+        row = conn.execute(_NEWEST_OF_OBJECT, {"hand": "h1", "kind": "capture", "digest": "d1"}).one()
+    assert reg.fetch_one(_NEWEST_OF_OBJECT, {"hand": "h1", "kind": "capture", "digest": "d1"}) == tuple(row)
+    assert repo.hand_stamp(reg, "h1") == repo.stamp_of(repo.get_hand(reg, "h1")) != replaced
+    plan = repo.add_plan(reg, hand="h1", strategy="S", success=True, request={}, result={})
+    assert repo.plan_stamp(reg, plan.id) == plan.created_at == repo.get_plan(reg, plan.id).created_at
+
+
 def test_the_plan_paths_lone_statements_are_committed_at_once(reg: Registry, database_url: str) -> None:
     """``hand_ref`` and ``add_plan`` send their statement alone on SQLite (no BEGIN: SQLite makes a lone statement
     atomic), and the plan is committed when ``add_plan`` returns, on SQLite and on PostgreSQL: another registry on
-    the same database reads it back at once."""
+    the same database reads it back at once. What SQLite runs is traced by SQLite itself (``hand_ref`` reads on a
+    DBAPI connection, below SQLAlchemy's events)."""
     _hand(reg, "h1")
     sent: list[str] = []
+    tracing = True
 
-    def record(_conn: object, _cursor: object, statement: str, *_args: object) -> None:
-        sent.append(statement.split()[0].upper())
+    def trace(statement: str) -> None:
+        if tracing:
+            sent.append(statement.split()[0].upper())
 
-    event.listen(reg.engine, "before_cursor_execute", record)
+    def on_connect(dbapi_connection: Any, _record: object) -> None:
+        if reg.is_sqlite:
+            dbapi_connection.set_trace_callback(trace)
+
+    reg.engine.dispose()  # connections made from here on are traced from their first statement
+    event.listen(reg.engine, "connect", on_connect)
     try:
         ref = repo.hand_ref(reg, "h1")
         plan = repo.add_plan(reg, hand="h1", strategy="C", success=True, request={}, result={"q": [0.1]})
     finally:
-        event.remove(reg.engine, "before_cursor_execute", record)
+        tracing = False
+        event.remove(reg.engine, "connect", on_connect)
     if reg.is_sqlite:
         assert sent == ["SELECT", "INSERT"]
     assert ref.name == "h1"
