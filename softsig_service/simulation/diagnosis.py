@@ -83,7 +83,11 @@ def summary(diagnosis: Mapping[str, Any]) -> str:
             parts.append(text)
             continue
         if snap["phase"] == "stopped":
-            parts.append(f"stopped at {snap['time']:.2f} s with the object on the table, out of the hand's reach")
+            rule = (diagnosis.get("stopped") or {}).get("rule")
+            if rule == "clear_alone":
+                parts.append(f"stopped at {snap['time']:.2f} s with the object away from the hand, never to return")
+            else:
+                parts.append(f"stopped at {snap['time']:.2f} s with the object on the table, out of the hand's reach")
             continue
         where = "on the table" if snap["touches_table"] else f"{snap['height'] * 1000:.0f} mm above the table"
         held = f"held by {len(contacts)}" if contacts else "not in the hand"

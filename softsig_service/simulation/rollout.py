@@ -56,9 +56,11 @@ A failed trial says why, checked in this order:
 
 **Early stop** (:attr:`RolloutConfig.early_stop`, on by default): a trial whose outcome is decided before its
 schedule ends stops there (:data:`STOP_RULES`): a diverged simulation, or, during the lift or the hold, an object
-lying at rest on the table out of the rising hand's reach (its verdict, ``dropped`` or ``no_contact``, is the one
-the full schedule gives; the stop is recorded in :attr:`SimOutcome.stopped`). A carried object is always held to
-the end of the hold.
+lying at rest on the table out of the rising hand's reach, or one whose own simulation alone to the end of the
+schedule never brings it near the robot (:mod:`softsig_service.simulation.clear_alone`: it rolls away; its end
+state is taken from that simulation). The verdict, ``dropped`` or ``no_contact``, is the one the full schedule
+gives; the stop is recorded in :attr:`SimOutcome.stopped`. A carried object is always held to the end of the
+hold.
 
 **Approach replay** (:attr:`RolloutConfig.replay_approach`, on by default): the trials of one plan follow the same
 joint targets, so the robot's motion until it nears the object is recorded once per process and plan, and a trial
@@ -95,6 +97,7 @@ from softsig_service.simulation.approach_replay import (
     replay,
     restore,
 )
+from softsig_service.simulation.clear_alone import AloneEnd, follow_alone, robot_room
 from softsig_service.simulation.diagnosis import snapshot
 from softsig_service.simulation.scene import build_object_alone
 from softsig_service.simulation.scene_model import ContactSummary, Scene
@@ -207,6 +210,9 @@ OUT_OF_REACH_CLEARANCE = 0.01
 """[m] the least gap between the hand's lowest point and the highest point the object could still reach that puts
 it out of reach (covers the servos' few-mm tracking error and the closed fingers' sway)."""
 
+CLEAR_ALONE_RETRY = 10
+"""Control ticks between two tries of the ``clear_alone`` rule (each simulates the object alone to the end)."""
+
 STOP_RULES: dict[str, str] = {
     "out_of_reach": (
         "during the lift or the hold, in a scene without obstacles, the object touches nothing but the table and "
@@ -216,6 +222,16 @@ STOP_RULES: dict[str, str] = {
         "its farthest point from its centre of mass. The hand only rises (lift) or stays (hold) from there and "
         "the arm's links ride above it, so the object is never touched again: the trial ends 'dropped' (it was "
         "in the hand) or 'no_contact' (it never was), as the full schedule would"
+    ),
+    "clear_alone": (
+        "during the lift or the hold, in a scene without obstacles, the object touches neither the hand nor the arm, "
+        "and the object simulated alone on the table from its state now to the end of the schedule keeps its "
+        "bounding sphere, at every control tick, outside the robot's room: the bounding spheres of the arm's geoms "
+        "at the joint targets of every remaining tick and a sphere about the hand's mount that holds the hand in any "
+        "posture, each widened by OUT_OF_REACH_CLEARANCE (softsig_service.simulation.clear_alone). Nothing but the "
+        "table touches it in the full scene either, so it moves there as it does alone and the hand never touches "
+        "it again: the trial ends 'dropped' or 'no_contact', with the end state of the alone simulation, as the "
+        "full schedule would (an object that rolls away across the table)"
     ),
     "diverged": "the simulation diverged (non-finite state or a MuJoCo warning): 'sim_unstable'",
 }
@@ -303,6 +319,11 @@ class Run:
         self.done = 0  # control ticks run (or replayed) so far
         self.replayed: Replay | None = None
         self.prefix: Prefix | None = None
+        self.obj = obj
+        self.tail: list[tuple[int, Callable[[float], FloatArray]]] = []  # grasping phases after the current one
+        self.targets: tuple[Callable[[float], FloatArray], int, int] | None = None  # arm, tick in phase, ticks
+        self.alone_end: AloneEnd | None = None
+        self.next_alone_try = 0  # the first tick at which the clear_alone rule is tried (again)
 
     def resume(self, prefix: Prefix, rp: Replay) -> None:
         """Continue from tick ``rp.tick`` of a recorded approach (:mod:`softsig_service.simulation.approach_replay`):
@@ -348,7 +369,36 @@ class Run:
         if grasping and self.early_stop and self._out_of_reach(contacts):
             out.stopped = {"rule": "out_of_reach", "time": round(float(data.time), 4)}
             return False
+        if grasping and self.early_stop and self._clear_alone(contacts):
+            out.stopped = {"rule": "clear_alone", "time": round(float(data.time), 4)}
+            return False
         return True
+
+    def _remaining_targets(self) -> list[FloatArray]:
+        """The arm's joint targets [rad] of every tick left in the schedule after this one."""
+        if self.targets is None:
+            return []
+        arm, k, n = self.targets
+        out = [arm((j + 1) * self.tick) for j in range(k + 1, n)]
+        for n_ticks, fn in self.tail:
+            out += [fn((j + 1) * self.tick) for j in range(n_ticks)]
+        return out
+
+    def _clear_alone(self, contacts: ContactSummary) -> bool:
+        """Whether the ``clear_alone`` rule of :data:`STOP_RULES` holds now (tried at most every
+        :data:`CLEAR_ALONE_RETRY` ticks while the object is out of the hand)."""
+        if contacts.object_hand or contacts.arm_object or self.done < self.next_alone_try:
+            return False
+        if self.scene.object_geoms.size != 1:
+            return False
+        self.next_alone_try = self.done + CLEAR_ALONE_RETRY
+        targets = self._remaining_targets()
+        if not targets:
+            return False
+        room = robot_room(self.scene, self.data, targets, OUT_OF_REACH_CLEARANCE)
+        alone = build_object_alone(self.obj, self.scene)
+        self.alone_end = follow_alone(self.scene, alone, self.data, room, len(targets), self.nsub)
+        return self.alone_end is not None
 
     def _out_of_reach(self, contacts: ContactSummary) -> bool:
         """Whether the ``out_of_reach`` rule of :data:`STOP_RULES` holds now."""
@@ -363,6 +413,10 @@ class Run:
         reach = float(data.xipos[scene.object_body][2]) + rise + r_com
         return hand_low >= reach + OUT_OF_REACH_CLEARANCE
 
+    def ticks(self, duration: float) -> int:
+        """The control ticks a phase of ``duration`` [s] runs."""
+        return max(1, math.ceil(duration / self.tick - 1e-9))
+
     def phase(
         self,
         duration: float,
@@ -375,7 +429,7 @@ class Run:
         for the end of each tick: servos lead by one tick), calling ``after_tick`` after each; False if the
         trial ended (:meth:`step`). ``grasping`` as in :meth:`step`."""
         data, scene = self.data, self.scene
-        n = max(1, math.ceil(duration / self.tick - 1e-9))
+        n = self.ticks(duration)
         for k in range(n):
             self.done += 1
             rp = self.replayed
@@ -383,6 +437,7 @@ class Run:
                 self.out.max_rise = max(self.out.max_rise, float(rp.heights[self.done - 1]) - self.z0)
                 continue
             t = (k + 1) * self.tick
+            self.targets = (arm, k, n)
             data.ctrl[scene.arm_actuators] = arm(t)
             data.ctrl[scene.closure_actuators] = hand(t)
             if not self.step(grasping):
@@ -406,7 +461,11 @@ class Run:
         ``p_hold`` [m] is the object's centre in the flange frame at the start of the hold."""
         scene, data, out = self.scene, self.data, self.out
         out.sim_time = float(data.time)
-        if ok or (out.stopped is not None and out.stopped["rule"] == "out_of_reach"):
+        if self.alone_end is not None:  # stopped by clear_alone: the end of the schedule is the alone simulation's
+            out.rise = self.alone_end.height - self.z0
+            out.max_rise = max(out.max_rise, self.alone_end.max_height - self.z0)
+            out.touching_table_end = self.alone_end.touches_table
+        elif ok or (out.stopped is not None and out.stopped["rule"] == "out_of_reach"):
             contacts = scene.contact_summary(data)
             out.rise = float(scene.object_position(data)[2]) - self.z0
             out.touching_end = contacts.object_hand
@@ -539,13 +598,20 @@ def simulate(
     if ok:
         run.out.touching_after_close = scene.contact_summary(data).object_hand
         seen("closure")
+
+    def at_top(_t: float) -> FloatArray:
+        return q_top
+
+    if cfg.hold_time > 0.0:
+        run.tail = [(run.ticks(cfg.hold_time), at_top)]
     ok = ok and phase(cfg.lift_time, lambda t: interp(lift, quintic(t / cfg.lift_time)), closed_hand, True)
+    run.tail = []
     if ok:
         seen("lift")
     p_hold = scene.object_in_flange(data)  # the object in the hand frame at the start of the hold
-    ok = ok and (cfg.hold_time <= 0.0 or phase(cfg.hold_time, lambda _t: q_top, closed_hand, True))
+    ok = ok and (cfg.hold_time <= 0.0 or phase(cfg.hold_time, at_top, closed_hand, True))
     if ok and cfg.hold_time > 0.0:
         seen("hold")
-    if run.out.stopped is not None and run.out.stopped["rule"] == "out_of_reach":
+    if run.out.stopped is not None and run.out.stopped["rule"] in ("out_of_reach", "clear_alone"):
         seen("stopped")
     return run.finish(ok, p_hold)

@@ -1,0 +1,172 @@
+"""The ``clear_alone`` stop rule: an object that left the hand, simulated alone, never comes near the robot again.
+
+During the lift and the hold a dropped object often rolls away across the table (an apple falling from a few
+centimetres bounces and rolls at 1-2 m/s): its kinetic energy keeps the ``out_of_reach`` rule of
+:mod:`softsig_service.simulation.rollout` from deciding, yet it never meets the hand again. This rule decides it
+from the object's own future instead of a bound on it:
+
+1. **The robot's room** for the rest of the schedule (:func:`robot_room`): at the arm's joint targets of every
+   remaining control tick (and at its state now), the bounding sphere of every arm geom and of every hand geom
+   rigid with the mount, and for each finger (a chain of jointed bodies) one sphere about its root's seat on the
+   palm that holds it in *any* posture (:func:`hand_parts`: the lengths of the chain, so the fingers may close,
+   open or sway as they like), each widened by ``clearance`` [m] (the servos track their targets within a few
+   millimetres during the lift).
+2. **The object alone** (:func:`~softsig_service.simulation.scene.build_object_alone`: the same body, table and
+   options) from its state now to the end of the schedule, tick by tick (:func:`follow_alone`): if its bounding
+   sphere stays outside that room at every tick, nothing but the table touches it in the full scene either (MuJoCo
+   solves its constraint island apart from the robot's), so it moves there as it does alone (to about 1e-11 m,
+   ``tests/simulation/test_approach_replay.py``) and is never touched by the hand again. The trial's outcome is
+   then the full schedule's: the end state is the alone simulation's.
+
+World frame (UR5 ``base_link``, z up), SI units.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from softsig_service.simulation.scene_model import OBJECT_BODY, Scene
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class HandParts:
+    """The hand split for :func:`robot_room`: ``rigid`` geoms move with the mount whatever the posture (their own
+    bounding spheres); every other geom hangs below a ``root`` body, the jointed body nearest the mount on its chain,
+    and lies within ``radius`` [m] of the point where that root's origin sits in its parent's frame (``root_pos``),
+    in any posture. ``roots``, ``root_pos`` and ``radius`` are per root."""
+
+    rigid: NDArray[np.int64]
+    roots: NDArray[np.int64]
+    root_pos: FloatArray
+    radius: FloatArray
+
+
+def _chain_reach(model: mujoco.MjModel, body: int) -> float:
+    """[m] how far a body's origin can be from where it sits in its parent's frame: twice each hinge's or ball's
+    offset from the body's origin (a turn about that point), a slide's longest travel; infinite for a free joint."""
+    reach = 0.0
+    for j in range(int(model.body_jntadr[body]), int(model.body_jntadr[body] + model.body_jntnum[body])):
+        kind = int(model.jnt_type[j])
+        if kind == mujoco.mjtJoint.mjJNT_FREE:
+            return float("inf")
+        if kind == mujoco.mjtJoint.mjJNT_SLIDE:
+            reach += float(np.max(np.abs(model.jnt_range[j])))
+        reach += 2.0 * float(np.linalg.norm(model.jnt_pos[j]))
+    return reach
+
+
+@functools.cache
+def _hand_parts(model: mujoco.MjModel, mount: int, geoms: tuple[int, ...]) -> HandParts:
+    rigid: list[int] = []
+    radius: dict[int, float] = {}
+    for g in geoms:
+        chain = []  # the bodies from the geom's up to (not including) the mount
+        b = int(model.geom_bodyid[g])
+        while b != mount:
+            chain.append(b)
+            b = int(model.body_parentid[b])
+        jointed = [i for i, c in enumerate(chain) if model.body_jntnum[c] > 0]
+        if not jointed:
+            rigid.append(g)
+            continue
+        top = jointed[-1]  # the jointed body nearest the mount: the root
+        reach = _chain_reach(model, chain[top])
+        for c in chain[:top]:
+            reach += float(np.linalg.norm(model.body_pos[c])) + _chain_reach(model, c)
+        reach += float(np.linalg.norm(model.geom_pos[g])) + float(model.geom_rbound[g])
+        radius[chain[top]] = max(radius.get(chain[top], 0.0), reach)
+    roots = np.array(sorted(radius), dtype=np.int64)
+    return HandParts(
+        rigid=np.array(rigid, dtype=np.int64),
+        roots=roots,
+        root_pos=np.array([model.body_pos[r] for r in roots], dtype=np.float64).reshape(-1, 3),
+        radius=np.array([radius[int(r)] for r in roots], dtype=np.float64),
+    )
+
+
+def hand_parts(scene: Scene) -> HandParts:
+    """The scene's hand split into rigid geoms and jointed chains (:class:`HandParts`), computed once per model: a
+    chain's radius is the sum, along it, of each body's offset from its parent and the travel its joints allow
+    (:func:`_chain_reach`), plus the geom's offset and bounding radius."""
+    return _hand_parts(scene.model, int(scene.mount_body), tuple(int(g) for g in scene.hand_geoms))
+
+
+@dataclass(frozen=True)
+class Room:
+    """Spheres that hold the robot for the rest of a schedule: ``centres`` (M, 3) [m], ``radii`` (M,) [m]."""
+
+    centres: FloatArray
+    radii: FloatArray
+
+
+def _spheres(scene: Scene, data: mujoco.MjData, parts: HandParts) -> FloatArray:
+    """The centres (M, 3) of the robot's spheres as posed in ``data`` (positions computed): the arm's and the rigid
+    hand geoms' centres, then each chain root's seat in its parent's frame."""
+    parents = scene.model.body_parentid[parts.roots]
+    seats = data.xpos[parents] + np.einsum("nij,nj->ni", data.xmat[parents].reshape(-1, 3, 3), parts.root_pos)
+    return np.concatenate([data.geom_xpos[scene.arm_geoms], data.geom_xpos[parts.rigid], seats])
+
+
+def robot_room(scene: Scene, data: mujoco.MjData, arm_targets: Sequence[FloatArray], clearance: float) -> Room:
+    """The robot's room (module docstring, step 1) for the arm's joint targets ``arm_targets`` [rad] of the
+    remaining ticks and its state in ``data`` now, each sphere widened by ``clearance`` [m]."""
+    m = scene.model
+    parts = hand_parts(scene)
+    probe = mujoco.MjData(m)
+    probe.qpos[:] = data.qpos
+    centres = [_spheres(scene, data, parts)]
+    for q in arm_targets:
+        probe.qpos[scene.arm_qpos] = q
+        mujoco.mj_kinematics(m, probe)
+        centres.append(_spheres(scene, probe, parts))
+    radii = np.concatenate([m.geom_rbound[scene.arm_geoms], m.geom_rbound[parts.rigid], parts.radius]) + clearance
+    return Room(np.concatenate(centres), np.tile(radii, len(arm_targets) + 1))
+
+
+@dataclass(frozen=True)
+class AloneEnd:
+    """The object's end state from :func:`follow_alone`: its world height [m] after the last tick (as the scene
+    reports it: the body's position at the start of that tick's last time step), the highest such height of any
+    tick [m], and whether it touches the table there (a contact with distance <= 0)."""
+
+    height: float
+    max_height: float
+    touches_table: bool
+
+
+def follow_alone(
+    scene: Scene, alone: mujoco.MjModel, data: mujoco.MjData, room: Room, ticks: int, nsub: int
+) -> AloneEnd | None:
+    """Simulate the object of ``data`` (the scene's data now) alone on the table for ``ticks`` control ticks of
+    ``nsub`` time steps; its end state if its bounding sphere stays outside ``room`` at every tick, else None."""
+    a = scene.object_qpos
+    dof = int(scene.model.jnt_dofadr[scene.model.body_jntadr[scene.object_body]])
+    d = mujoco.MjData(alone)
+    d.qpos[:] = data.qpos[a : a + 7]
+    d.qvel[:] = data.qvel[dof : dof + 6]
+    d.qacc_warmstart[:] = data.qacc_warmstart[dof : dof + 6]
+    d.time = data.time
+    og, ob = int(alone.geom(f"{OBJECT_BODY}_geom").id), int(alone.body(OBJECT_BODY).id)
+    r_obj = float(alone.geom_rbound[og])
+    reach = room.radii + r_obj
+    height = max_height = float(data.xpos[scene.object_body][2])
+    for _ in range(ticks):
+        mujoco.mj_step(alone, d, nsub)
+        if not np.isfinite(d.qpos).all():
+            return None
+        height = float(d.xpos[ob][2])
+        max_height = max(max_height, height)
+        mujoco.mj_kinematics(alone, d)
+        gap = np.einsum("ij,ij->i", room.centres - d.geom_xpos[og], room.centres - d.geom_xpos[og])
+        if np.any(gap <= reach * reach):
+            return None
+    touches = bool(d.ncon and np.any(d.contact.dist[: d.ncon] <= 0.0))
+    return AloneEnd(height=height, max_height=max_height, touches_table=touches)
