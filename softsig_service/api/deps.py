@@ -17,9 +17,7 @@ from fastapi.security import APIKeyHeader
 from softsig_service.api.context import AppContext
 from softsig_service.errors import PreconditionRequired, Unauthorized
 
-api_key_header = APIKeyHeader(
-    name="X-API-Key", auto_error=False, description="an API key of the service (SOFTSIG_API_KEYS)"
-)
+API_KEY_DESCRIPTION = "an API key of the service (SOFTSIG_API_KEYS)"
 
 
 async def get_ctx(request: Request) -> AppContext:
@@ -42,26 +40,36 @@ def key_is_valid(given: str | None, keys: list[str]) -> bool:
     return ok
 
 
-async def require_write(request: Request, key: Annotated[str | None, Security(api_key_header)] = None) -> None:
-    """Writes need a valid ``X-API-Key``."""
-    ctx: AppContext = request.app.state.ctx
-    if not ctx.api_keys:
-        raise Unauthorized(
-            "writes are disabled: the service has no API key configured (SOFTSIG_API_KEYS)", field="X-API-Key"
+class AccessCheck(APIKeyHeader):
+    """The ``X-API-Key`` header as the OpenAPI document's security scheme (``APIKeyHeader``) and a route's check of
+    it, in one dependency (FastAPI solves one level per request instead of a check depending on the header's
+    scheme): with ``write``, a valid key is needed; else only when ``Settings.read_auth`` is set."""
+
+    def __init__(self, *, write: bool) -> None:
+        super().__init__(
+            name="X-API-Key", auto_error=False, description=API_KEY_DESCRIPTION, scheme_name="APIKeyHeader"
         )
-    if not key_is_valid(key, ctx.api_keys):
-        raise Unauthorized("a valid X-API-Key header is required for writes", field="X-API-Key")
+        self.write = write
+
+    async def __call__(self, request: Request) -> None:  # type: ignore[override]
+        """:class:`Unauthorized` (naming ``X-API-Key``) when the request may not use the route."""
+        ctx: AppContext = request.app.state.ctx
+        key = request.headers.get("x-api-key")
+        if self.write:
+            if not ctx.api_keys:
+                raise Unauthorized(
+                    "writes are disabled: the service has no API key configured (SOFTSIG_API_KEYS)", field="X-API-Key"
+                )
+            if not key_is_valid(key, ctx.api_keys):
+                raise Unauthorized("a valid X-API-Key header is required for writes", field="X-API-Key")
+        elif ctx.settings.read_auth and not key_is_valid(key, ctx.api_keys):
+            raise Unauthorized("a valid X-API-Key header is required (read_auth is on)", field="X-API-Key")
 
 
-async def require_read(request: Request, key: Annotated[str | None, Security(api_key_header)] = None) -> None:
-    """Reads need a valid ``X-API-Key`` only when ``Settings.read_auth`` is set."""
-    ctx: AppContext = request.app.state.ctx
-    if ctx.settings.read_auth and not key_is_valid(key, ctx.api_keys):
-        raise Unauthorized("a valid X-API-Key header is required (read_auth is on)", field="X-API-Key")
-
-
-WriteAccess = Depends(require_write)
-ReadAccess = Depends(require_read)
+WriteAccess = Security(AccessCheck(write=True))
+"""Writes need a valid ``X-API-Key``."""
+ReadAccess = Security(AccessCheck(write=False))
+"""Reads need a valid ``X-API-Key`` only when ``Settings.read_auth`` is set."""
 
 
 IF_MATCH_REQUIRED_DESCRIPTION = "the ETag of the resource's current representation"

@@ -27,6 +27,7 @@ from fastapi import APIRouter, File, Path, Request, Response, UploadFile
 from starlette.concurrency import run_in_threadpool
 
 from softsig_service import registry as repo
+from softsig_service.api.context import AppContext
 from softsig_service.api.deps import Ctx, IfMatchRequired, WriteAccess
 from softsig_service.api.responses import Answer, AnswerCache, json_response, model_json
 from softsig_service.api.routes.common import WRITE, problem, read_route, with_etag
@@ -264,8 +265,9 @@ async def _register(
     **read_route({304: {"description": "If-None-Match matched the current ETag"}}),
     summary="Get a hand",
 )
-async def get_hand(ctx: Ctx, hand: HandPath, request: Request) -> Any:
+async def get_hand(hand: HandPath, request: Request) -> Any:
     """A hand with its model summary; ``ETag`` for ``If-Match`` on updates (``If-None-Match`` gives 304)."""
+    ctx: AppContext = request.app.state.ctx  # not the Ctx dependency: one level less to solve on a hot read
     stamp = repo.hand_stamp(ctx.registry, hand)  # one indexed row, on the loop (api/responses.py)
     if stamp is None:  # HandNotFound, with the registered names (or one registered meanwhile)
         await run_in_threadpool(repo.get_hand, ctx.registry, hand)

@@ -18,7 +18,7 @@ from collections.abc import Callable
 from pathlib import Path as FsPath
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Path, Query, Response
+from fastapi import APIRouter, Path, Query, Request, Response
 from starlette.concurrency import run_in_threadpool
 
 from softsig_service import registry as repo
@@ -241,8 +241,9 @@ def list_plans(
 
 
 @router.get("/plans/{plan_id}", response_model=PlanOut, **read_route(), summary="Get a plan")
-async def get_plan(ctx: Ctx, plan_id: PlanId) -> Response:
+async def get_plan(plan_id: PlanId, request: Request) -> Response:
     """A stored plan."""
+    ctx: AppContext = request.app.state.ctx  # not the Ctx dependency: one level less to solve on a hot read
     stamp = repo.plan_stamp(ctx.registry, plan_id)  # one indexed row, on the loop (api/responses.py)
     if stamp is None:
         raise NotFound("no such plan", field="plan_id", value=plan_id)
