@@ -103,7 +103,10 @@ from softsig_service.simulation.scene import build_object_alone
 from softsig_service.simulation.scene_model import ContactSummary, Scene
 
 FloatArray = NDArray[np.float64]
-_BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
+_BAD_STATE = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
+                                     mujoco.mjtWarning.mjWARN_BADQVEL))  # fmt: skip
+"""MuJoCo's warnings of a diverged state: it resets the data on a bad position or velocity (so the position is
+finite again afterwards), and warns on a bad acceleration."""
 
 REASONS: tuple[str, ...] = (
     "unreachable:approach",
@@ -353,7 +356,7 @@ class Run:
         with the hand are recorded in ``touched_in_lift``."""
         scene, data, out = self.scene, self.data, self.out
         mujoco.mj_step(scene.model, data, self.nsub)
-        if not np.isfinite(data.qpos).all() or data.warning[_BADQACC].number:
+        if not np.isfinite(data.qpos).all() or any(data.warning[w].number for w in _BAD_STATE):
             out.unstable = True
             out.stopped = {"rule": "diverged", "time": round(float(data.time), 4)}
             return False

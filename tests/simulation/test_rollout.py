@@ -255,3 +255,21 @@ def test_trial_result_json_round_trip() -> None:
     r = run_trial("parallel_gripper", builtin_object("box", x=1.5), "C", seed=9)
     d = json.loads(json.dumps(r.to_json_dict()))
     assert d["seed"] == 9 and d["perturbation"] == dataclasses.asdict(r.perturbation)
+
+
+def test_a_state_mujoco_resets_is_caught_as_diverged() -> None:
+    """MuJoCo resets the data on a non-finite velocity (the position is finite again afterwards): its warning ends
+    the trial as ``diverged``."""
+    from softsig_service.experiments.trial import default_planner
+    from softsig_service.objects import builtin_object
+    from softsig_service.simulation.rollout import Run
+    from softsig_service.simulation.scene import build_scene
+
+    box = builtin_object("box")
+    scene = build_scene("pisa_iit_softhand", box, default_planner().settings, ())
+    run = Run(scene, box, np.array([0.0, -1.2, 1.5, -1.9, -1.57, 0.0]), RolloutConfig())
+    assert run.step(False)  # a healthy tick
+    run.data.qvel[scene.arm_dof[0]] = np.nan
+    assert not run.step(False)
+    assert np.isfinite(run.data.qpos).all()  # reset by MuJoCo: only its warning tells
+    assert run.out.unstable and run.out.stopped is not None and run.out.stopped["rule"] == "diverged"
