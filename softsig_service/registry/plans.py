@@ -38,11 +38,10 @@ def _plan(row: PlanRow) -> PlanRecord:
 
 def add_plan(reg: Registry, *, hand: str, strategy: str, success: bool, request: dict[str, Any],
              result: dict[str, Any]) -> PlanRecord:  # fmt: skip
-    """Store a plan under a new random id (one Core ``INSERT``: a plan request's path, where an ORM session and
-    flush cost about half as much again)."""
+    """Store a plan under a new random id (one ``INSERT`` by :meth:`Registry.insert_one`: a plan request's path,
+    where an ORM session and flush cost about half as much again, and Core's execute about 0.1 ms more)."""
     rec = PlanRecord(uuid.uuid4().hex, hand, strategy, success, dict(request), dict(result), utcnow())
-    with reg.write_core() as conn:
-        conn.execute(_INSERT, {f: getattr(rec, f) for f in _FIELDS})
+    reg.insert_one(_INSERT, {f: getattr(rec, f) for f in _FIELDS})
     return rec
 
 
