@@ -100,6 +100,10 @@ class RequestContextMiddleware:
         self.app = app
         self.metrics = metrics
         self.routes = list(routes)
+        # the labelled children by (method, route, status) and (method, route): ``labels()`` takes a lock and
+        # checks its labels on every call
+        self._counts: dict[tuple[str, str, str], Any] = {}
+        self._latencies: dict[tuple[str, str], Any] = {}
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -142,8 +146,15 @@ class RequestContextMiddleware:
             self.metrics.in_progress.dec()
             route = route_template(self.routes, scope)
             method = scope.get("method", "")
-            self.metrics.requests.labels(method, route, str(status)).inc()
-            self.metrics.latency.labels(method, route).observe(dt)
+            key = (method, route, str(status))
+            count = self._counts.get(key)
+            if count is None:
+                count = self._counts[key] = self.metrics.requests.labels(*key)
+            count.inc()
+            latency = self._latencies.get(key[:2])
+            if latency is None:
+                latency = self._latencies[key[:2]] = self.metrics.latency.labels(method, route)
+            latency.observe(dt)
             if access_log.isEnabledFor(logging.INFO):
                 access_log.info(
                     "%s %s %d",
