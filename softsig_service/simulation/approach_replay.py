@@ -1,4 +1,4 @@
-"""Approach replay: the trials of one plan share the robot's motion until the hand nears the object.
+"""Approach replay: the trials of one plan share the robot's motion until just before the hand touches the object.
 
 Every trial of a campaign cell plans on the nominal object pose, so its arm and hand follow the same joint targets
 and, until they touch the object, the same motion: MuJoCo solves the robot's constraint island apart from the
@@ -13,10 +13,12 @@ simulate the robot through the approach and the closure again:
    before (``|dx| + |dR|_F r`` per geom, ``r`` its bounding radius).
 2. **Replay** (per trial, :func:`replay`): the object alone on the table (:func:`~softsig_service.simulation.scene.
    build_object_alone`, its island as in the scene) from the trial's pose, tick by tick, and at each tick the
-   distance (MuJoCo's ``mj_geomDistance``) between the object and every hand or arm geom posed as recorded. The
-   trial resumes at the last tick before the first one at which that distance falls below :data:`NEAR` [m], or at
-   which the robot's or the object's points moved more than half of it in one tick (then nothing can have touched
-   in between), and at the latest one tick before the closure ends.
+   distance (MuJoCo's ``mj_geomDistance``) between the object and every hand or arm geom posed as recorded. A tick
+   is shared while nothing of the robot can have touched the object during it: the distance at the tick before
+   exceeds, by :data:`MARGIN`, how far the robot's points (the recorded travel bound) and the object's points
+   (likewise, from its replayed poses) moved in the tick. The trial resumes at the last shared tick (the fingers
+   are then a few millimetres from the object, typically early in the closure), and at the latest one tick before
+   the closure ends.
 3. **Resume**: the scene's data at that tick is the recorded robot state with the object's replayed state; the
    trial's record of the skipped ticks (the object's highest rise, its settling, the first arm-table contact) comes
    from the replay and the recording. From there the full scene is simulated as before.
@@ -44,9 +46,12 @@ from softsig_service.simulation.scene_model import OBJECT_BODY, Scene
 FloatArray = NDArray[np.float64]
 
 NEAR = 0.01
-"""[m] the gap between the object and the robot's geoms below which a trial simulates the whole scene (servo
-motion moves the hand's points a few millimetres per 10 ms tick at most; a tick whose motion exceeds half of this
-ends the shared part)."""
+"""[m] the distances between the object and the robot's geoms are computed up to this (``mj_geomDistance``'s
+``distmax``; a larger gap counts as this much): servo motion moves the hand's points a few millimetres per 10 ms
+tick at most, so a tick whose motion reaches it ends the shared part."""
+MARGIN = 0.001
+"""[m] what a tick's gap must exceed the robot's and the object's motion in that tick by to be shared (covers the
+difference between the motion within a tick and the straight line between its end poses)."""
 FAR = 100.0
 """[m] how far along world x the recording puts the object (on the table plane, out of every robot geom's reach)."""
 CACHE_SIZE = 16
@@ -142,7 +147,7 @@ class Replay:
 
 def replay(scene: Scene, alone: mujoco.MjModel, start: mujoco.MjData, prefix: Prefix, nsub: int) -> Replay:
     """Simulate the object alone from the trial's start ``start`` (the scene's data, the object at its pose) along
-    ``prefix`` until the robot nears it (module docstring); ``nsub`` time steps per tick."""
+    ``prefix`` until the robot may touch it (module docstring); ``nsub`` time steps per tick."""
     a = scene.object_qpos
     dof = int(scene.model.jnt_dofadr[scene.model.body_jntadr[scene.object_body]])
     d = mujoco.MjData(alone)
@@ -159,6 +164,7 @@ def replay(scene: Scene, alone: mujoco.MjModel, start: mujoco.MjData, prefix: Pr
     heights: list[float] = []
     approach_end: FloatArray | None = None
     x_prev, R_prev = d.geom_xpos[og].copy(), d.geom_xmat[og].copy()
+    gap = _gap(scene.model, probe, prefix, 0, obj_geom, x_prev, R_prev, rbound)
     for k in range(1, last + 1):
         mujoco.mj_step(alone, d, nsub)
         if not np.isfinite(d.qpos).all():
@@ -167,8 +173,9 @@ def replay(scene: Scene, alone: mujoco.MjModel, start: mujoco.MjData, prefix: Pr
         mujoco.mj_kinematics(alone, d)
         x, R = d.geom_xpos[og], d.geom_xmat[og]
         moved = float(np.linalg.norm(x - x_prev) + np.linalg.norm(R - R_prev) * r_obj)
-        if moved + prefix.travel[k] > 0.5 * NEAR or _gap(scene.model, probe, prefix, k, obj_geom, x, R, rbound) < NEAR:
+        if moved + prefix.travel[k] + MARGIN >= gap:  # something of the robot may have touched it in this tick
             break
+        gap = _gap(scene.model, probe, prefix, k, obj_geom, x, R, rbound)
         x_prev, R_prev = x.copy(), R.copy()
         heights.append(z)
         states.append((d.qpos.copy(), d.qvel.copy(), d.qacc_warmstart.copy()))

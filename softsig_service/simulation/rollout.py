@@ -63,8 +63,9 @@ gives; the stop is recorded in :attr:`SimOutcome.stopped`. A carried object is a
 hold.
 
 **Approach replay** (:attr:`RolloutConfig.replay_approach`, on by default): the trials of one plan follow the same
-joint targets, so the robot's motion until it nears the object is recorded once per process and plan, and a trial
-simulates only its object (alone on the table) up to there and resumes the full scene at that tick
+joint targets, so the robot's motion until it may touch the object (through the approach and typically into the
+closure) is recorded once per process and plan, and a trial simulates only its object (alone on the table) up to
+there and resumes the full scene at that tick
 (:mod:`softsig_service.simulation.approach_replay`: the robot's state there is the full simulation's bit for bit,
 the object's to about 1e-11 m). Off when frames or phases are recorded or the scene has obstacles.
 
@@ -137,9 +138,9 @@ class RolloutConfig:
         waypoints: number of IK waypoints along each Cartesian line (approach, lift), ends included.
         early_stop: end a trial as soon as its outcome is decided (:data:`STOP_RULES`); the verdict is the one
             the full schedule gives (``tests/simulation/test_early_stop.py`` checks it on every Table I cell).
-        replay_approach: take the robot's motion up to the hand's nearing the object from a recording shared by
-            the trials of one plan (:mod:`softsig_service.simulation.approach_replay`; only when nothing records
-            frames or phases and the scene has no obstacles).
+        replay_approach: take the robot's motion up to the tick before it may touch the object from a recording
+            shared by the trials of one plan (:mod:`softsig_service.simulation.approach_replay`; only when nothing
+            records frames or phases and the scene has no obstacles).
     """
 
     lift: float = LIFT

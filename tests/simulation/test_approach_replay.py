@@ -14,7 +14,6 @@ from softsig_service.experiments.campaign_spec import TABLE1_CONDITIONS, trial_s
 from softsig_service.experiments.trial import run_trial
 from softsig_service.objects import builtin_object
 from softsig_service.simulation import approach_replay, rollout
-from softsig_service.simulation.approach_replay import NEAR
 from softsig_service.simulation.rollout import RolloutConfig
 from softsig_service.simulation.scene import build_scene
 
@@ -64,23 +63,40 @@ def test_the_resumed_state_is_the_full_simulations(
     np.testing.assert_allclose(rp.qpos, qpos[a : a + 7], rtol=0.0, atol=1e-9)  # the object: to rounding
 
 
-def test_a_trial_resumes_before_the_hand_nears_the_object(monkeypatch: pytest.MonkeyPatch) -> None:
-    obj = builtin_object("box")
+@pytest.mark.parametrize(("name", "strategy", "seed"), [("box", "C", 4), ("apple", "S", 5), ("cylinder", "C", 6)])
+def test_a_trial_resumes_just_before_the_robot_touches_the_object(
+    name: str, strategy: str, seed: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The full simulation's first contact between the robot and the object comes after the resume tick, and the
+    sharing reaches close to it (within a few ticks), past the approach's end when the fingers touch in the
+    closure."""
+    obj = builtin_object(name)
+    touched: list[int] = []
+    ticks = [0]
+
+    def every_tick(scene: Any, data: mujoco.MjData) -> None:
+        contacts = scene.contact_summary(data)
+        if contacts.object_hand or contacts.arm_object:
+            touched.append(ticks[0])
+        ticks[0] += 1
+
+    run_trial(HAND, obj, strategy, seed=seed, sigma_r=0.1, sigma_t=0.02, config=FULL, on_frame=every_tick,  # type: ignore[arg-type]
+              frame_period=0.0099)  # fmt: skip
     seen = _resumes(monkeypatch)
-    run_trial(HAND, obj, "C", seed=4, sigma_r=0.1, sigma_t=0.02)
+    run_trial(HAND, obj, strategy, seed=seed, sigma_r=0.1, sigma_t=0.02)  # type: ignore[arg-type]
     prefix, rp = seen[0]["prefix"], seen[0]["replay"]
+    assert touched, "the hand never touched the object"
+    first = touched[0]  # the first tick after which the scene's contacts include one of the robot with the object
+    assert rp.tick < first <= rp.tick + 5
+    assert rp.tick > prefix.n_approach - 20  # at least into the approach's last fifth
     scene = build_scene(HAND, obj)
     data = mujoco.MjData(scene.model)
-    gaps = []
-    for k in (rp.tick, rp.tick + 3):  # at the resume tick, and a few ticks later in the full simulation's terms
-        data.qpos[:] = prefix.qpos[k]
-        data.qpos[scene.object_qpos : scene.object_qpos + 7] = rp.qpos
-        mujoco.mj_kinematics(scene.model, data)
-        g_obj = int(scene.object_geoms[0])
-        gaps.append(min(mujoco.mj_geomDistance(scene.model, data, int(g), g_obj, 1.0, None) for g in prefix.geoms))
-    assert gaps[0] >= NEAR  # nothing of the robot within NEAR of the object where the trial resumes
-    assert gaps[1] < gaps[0]  # and the hand closing in after it
-    assert prefix.travel.max() <= NEAR / 2
+    data.qpos[:] = prefix.qpos[rp.tick]
+    data.qpos[scene.object_qpos : scene.object_qpos + 7] = rp.qpos
+    mujoco.mj_kinematics(scene.model, data)
+    g_obj = int(scene.object_geoms[0])
+    gap = min(mujoco.mj_geomDistance(scene.model, data, int(g), g_obj, 1.0, None) for g in prefix.geoms)
+    assert gap > approach_replay.MARGIN  # nothing of the robot touches the object where the trial resumes
 
 
 def test_an_object_out_of_reach_is_replayed_until_just_before_the_closure_ends(
