@@ -9,7 +9,8 @@ Run: .venv/bin/python benchmarks/bench_api.py [--requests 400] [--concurrency 8]
                      multiple of it against its target)
      .venv/bin/python benchmarks/bench_api.py --baseline 5354fe9 --rounds 3 --client stdlib
                      (also the service of an earlier revision, exported with ``git archive`` and served from its
-                     own folder; A B A B ... in turn, a fresh data folder per run)
+                     own folder; A B A B ... in turn, a fresh data folder per run; with ``--per-request`` too, both
+                     against the one floor measured first)
 
 The server runs on a free loopback port with a fresh data folder (SQLite registry inside). Each client thread keeps
 one HTTP/1.1 connection (httpx; with ``--client stdlib`` the standard library's ``http.client`` with the bodies
@@ -412,11 +413,16 @@ def main() -> None:
     args = parser.parse_args()
     if args.per_request:
         floor = floor_cost(args.workers, args.requests, args.client)
-        with (
-            tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp,
-            serving(Path(tmp), args.workers, None, args.strategy) as (url, pid),
-        ):
-            per_request(url, pid, args.requests, args.strategy, args.client, floor)
+        with tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp:
+            sides: list[tuple[str, Path | None]] = [("this tree", None)]
+            if args.baseline is not None:
+                sides.insert(0, (args.baseline[:10], export_revision(args.baseline, Path(tmp))))
+            for r in range(args.rounds):
+                for i, (name, tree) in enumerate(sides):
+                    if args.baseline is not None:
+                        print(f"\n{name} (round {r + 1})", flush=True)
+                    with serving(Path(tmp) / f"data-{r}-{i}", args.workers, tree, args.strategy) as (url, pid):
+                        per_request(url, pid, args.requests, args.strategy, args.client, floor)
         return
     print(f"POST /v1/plans, strategy {args.strategy}, pisa_iit_softhand, box at random poses; {os.cpu_count()} CPUs, "
           f"{args.workers} service processes, client {args.client}")  # fmt: skip
