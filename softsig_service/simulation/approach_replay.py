@@ -164,7 +164,6 @@ def replay(scene: Scene, alone: mujoco.MjModel, start: mujoco.MjData, prefix: Pr
     heights: list[float] = []
     approach_end: FloatArray | None = None
     x_prev, R_prev = d.geom_xpos[og].copy(), d.geom_xmat[og].copy()
-    gap = _gap(scene.model, probe, prefix, 0, obj_geom, x_prev, R_prev, rbound)
     for k in range(1, last + 1):
         mujoco.mj_step(alone, d, nsub)
         if not np.isfinite(d.qpos).all():
@@ -173,9 +172,9 @@ def replay(scene: Scene, alone: mujoco.MjModel, start: mujoco.MjData, prefix: Pr
         mujoco.mj_kinematics(alone, d)
         x, R = d.geom_xpos[og], d.geom_xmat[og]
         moved = float(np.linalg.norm(x - x_prev) + np.linalg.norm(R - R_prev) * r_obj)
-        if moved + prefix.travel[k] + MARGIN >= gap:  # something of the robot may have touched it in this tick
-            break
-        gap = _gap(scene.model, probe, prefix, k, obj_geom, x, R, rbound)
+        need = moved + prefix.travel[k] + MARGIN  # the gap at the tick before must exceed this
+        if need >= NEAR or _gap(scene.model, probe, prefix, k - 1, obj_geom, x_prev, R_prev, rbound, need) < need:
+            break  # something of the robot may have touched the object in this tick
         x_prev, R_prev = x.copy(), R.copy()
         heights.append(z)
         states.append((d.qpos.copy(), d.qvel.copy(), d.qacc_warmstart.copy()))
@@ -196,10 +195,10 @@ def _gap(
     x: FloatArray,
     R: FloatArray,
     rbound: FloatArray,
+    cap: float = NEAR,
 ) -> float:
-    """[m] the least distance (capped at :data:`NEAR`) between the object geom at (``x``, ``R``) and the robot's
-    geoms as recorded at tick ``k`` (bounding spheres first, then ``mj_geomDistance``)."""
-    cap = NEAR
+    """[m] the least distance (capped at ``cap``) between the object geom at (``x``, ``R``) and the robot's geoms as
+    recorded at tick ``k`` (bounding spheres first, then ``mj_geomDistance``)."""
     centre = np.linalg.norm(prefix.geom_xpos[k] - x, axis=1) - rbound - float(model.geom_rbound[obj_geom])
     near = np.flatnonzero(centre < cap)
     if near.size == 0:

@@ -10,13 +10,14 @@ from the object's own future instead of a bound on it:
    rigid with the mount, and for each finger (a chain of jointed bodies) one sphere about its root's seat on the
    palm that holds it in *any* posture (:func:`hand_parts`: the lengths of the chain, so the fingers may close,
    open or sway as they like), each widened by ``clearance`` [m] (the servos track their targets within a few
-   millimetres during the lift).
+   millimetres during the lift), and per sphere the axis-aligned box that holds it at all those ticks (the lift
+   moves the hand straight up, so a box is little more than the spheres it holds).
 2. **The object alone** (:func:`~softsig_service.simulation.scene.build_object_alone`: the same body, table and
    options) from its state now to the end of the schedule, tick by tick (:func:`follow_alone`): if its bounding
-   sphere stays outside that room at every tick, nothing but the table touches it in the full scene either (MuJoCo
-   solves its constraint island apart from the robot's), so it moves there as it does alone (to about 1e-11 m,
-   ``tests/simulation/test_approach_replay.py``) and is never touched by the hand again. The trial's outcome is
-   then the full schedule's: the end state is the alone simulation's.
+   sphere stays outside every box of that room at every tick, nothing but the table touches it in the full scene
+   either (MuJoCo solves its constraint island apart from the robot's), so it moves there as it does alone (to about
+   1e-11 m, ``tests/simulation/test_approach_replay.py``) and is never touched by the hand again. The trial's outcome
+   is then the full schedule's: the end state is the alone simulation's.
 
 World frame (UR5 ``base_link``, z up), SI units.
 """
@@ -101,10 +102,11 @@ def hand_parts(scene: Scene) -> HandParts:
 
 @dataclass(frozen=True)
 class Room:
-    """Spheres that hold the robot for the rest of a schedule: ``centres`` (M, 3) [m], ``radii`` (M,) [m]."""
+    """Axis-aligned boxes that hold the robot for the rest of a schedule: ``lo`` and ``hi`` (M, 3) [m], their
+    lower and upper corners (world frame)."""
 
-    centres: FloatArray
-    radii: FloatArray
+    lo: FloatArray
+    hi: FloatArray
 
 
 def _spheres(scene: Scene, data: mujoco.MjData, parts: HandParts) -> FloatArray:
@@ -115,20 +117,47 @@ def _spheres(scene: Scene, data: mujoco.MjData, parts: HandParts) -> FloatArray:
     return np.concatenate([data.geom_xpos[scene.arm_geoms], data.geom_xpos[parts.rigid], seats])
 
 
+def _radii(scene: Scene, parts: HandParts, clearance: float) -> FloatArray:
+    m = scene.model
+    return np.concatenate([m.geom_rbound[scene.arm_geoms], m.geom_rbound[parts.rigid], parts.radius]) + clearance
+
+
+class RoomTracks:
+    """The robot's spheres at the arm's joint targets ``arm_targets`` [rad] of a run of ticks (the hand's posture
+    does not move them: :class:`HandParts`), widened by ``clearance`` [m], kept as the boxes that hold each sphere
+    over every suffix of the run: :meth:`room` for the ticks from ``i`` on is one lookup."""
+
+    def __init__(self, scene: Scene, data: mujoco.MjData, arm_targets: Sequence[FloatArray], clearance: float) -> None:
+        self.scene, self.clearance = scene, clearance
+        self.parts = hand_parts(scene)
+        self.radii = _radii(scene, self.parts, clearance)
+        m = scene.model
+        probe = mujoco.MjData(m)
+        probe.qpos[:] = data.qpos
+        centres = np.empty((len(arm_targets), self.radii.size, 3))
+        for t, q in enumerate(arm_targets):
+            probe.qpos[scene.arm_qpos] = q
+            mujoco.mj_kinematics(m, probe)
+            centres[t] = _spheres(scene, probe, self.parts)
+        r = self.radii[None, :, None]
+        self.lo = np.minimum.accumulate((centres - r)[::-1], axis=0)[::-1]  # lo[i]: over ticks i..end
+        self.hi = np.maximum.accumulate((centres + r)[::-1], axis=0)[::-1]
+
+    def __len__(self) -> int:
+        return int(self.lo.shape[0])
+
+    def room(self, i: int, data: mujoco.MjData) -> Room:
+        """The robot's room (module docstring, step 1) for the targets from the ``i``-th on and its state in
+        ``data`` now."""
+        now = _spheres(self.scene, data, self.parts)
+        r = self.radii[:, None]
+        return Room(np.concatenate([now - r, self.lo[i]]), np.concatenate([now + r, self.hi[i]]))
+
+
 def robot_room(scene: Scene, data: mujoco.MjData, arm_targets: Sequence[FloatArray], clearance: float) -> Room:
     """The robot's room (module docstring, step 1) for the arm's joint targets ``arm_targets`` [rad] of the
     remaining ticks and its state in ``data`` now, each sphere widened by ``clearance`` [m]."""
-    m = scene.model
-    parts = hand_parts(scene)
-    probe = mujoco.MjData(m)
-    probe.qpos[:] = data.qpos
-    centres = [_spheres(scene, data, parts)]
-    for q in arm_targets:
-        probe.qpos[scene.arm_qpos] = q
-        mujoco.mj_kinematics(m, probe)
-        centres.append(_spheres(scene, probe, parts))
-    radii = np.concatenate([m.geom_rbound[scene.arm_geoms], m.geom_rbound[parts.rigid], parts.radius]) + clearance
-    return Room(np.concatenate(centres), np.tile(radii, len(arm_targets) + 1))
+    return RoomTracks(scene, data, arm_targets, clearance).room(0, data)
 
 
 @dataclass(frozen=True)
@@ -146,7 +175,8 @@ def follow_alone(
     scene: Scene, alone: mujoco.MjModel, data: mujoco.MjData, room: Room, ticks: int, nsub: int
 ) -> AloneEnd | None:
     """Simulate the object of ``data`` (the scene's data now) alone on the table for ``ticks`` control ticks of
-    ``nsub`` time steps; its end state if its bounding sphere stays outside ``room`` at every tick, else None."""
+    ``nsub`` time steps; its end state if its bounding sphere stays outside every box of ``room`` at every tick, else
+    None."""
     a = scene.object_qpos
     dof = int(scene.model.jnt_dofadr[scene.model.body_jntadr[scene.object_body]])
     d = mujoco.MjData(alone)
@@ -155,8 +185,7 @@ def follow_alone(
     d.qacc_warmstart[:] = data.qacc_warmstart[dof : dof + 6]
     d.time = data.time
     og, ob = int(alone.geom(f"{OBJECT_BODY}_geom").id), int(alone.body(OBJECT_BODY).id)
-    r_obj = float(alone.geom_rbound[og])
-    reach = room.radii + r_obj
+    r2 = float(alone.geom_rbound[og]) ** 2
     height = max_height = float(data.xpos[scene.object_body][2])
     for _ in range(ticks):
         mujoco.mj_step(alone, d, nsub)
@@ -165,8 +194,9 @@ def follow_alone(
         height = float(d.xpos[ob][2])
         max_height = max(max_height, height)
         mujoco.mj_kinematics(alone, d)
-        gap = np.einsum("ij,ij->i", room.centres - d.geom_xpos[og], room.centres - d.geom_xpos[og])
-        if np.any(gap <= reach * reach):
+        c = d.geom_xpos[og]
+        out = np.maximum(np.maximum(room.lo - c, c - room.hi), 0.0)  # per box: how far c lies outside it, per axis
+        if np.min(np.einsum("ij,ij->i", out, out)) <= r2:
             return None
     touches = bool(d.ncon and np.any(d.contact.dist[: d.ncon] <= 0.0))
     return AloneEnd(height=height, max_height=max_height, touches_table=touches)

@@ -98,7 +98,7 @@ from softsig_service.simulation.approach_replay import (
     replay,
     restore,
 )
-from softsig_service.simulation.clear_alone import AloneEnd, follow_alone, robot_room
+from softsig_service.simulation.clear_alone import AloneEnd, RoomTracks, follow_alone
 from softsig_service.simulation.diagnosis import snapshot
 from softsig_service.simulation.scene import build_object_alone
 from softsig_service.simulation.scene_model import ContactSummary, Scene
@@ -106,8 +106,9 @@ from softsig_service.simulation.scene_model import ContactSummary, Scene
 FloatArray = NDArray[np.float64]
 _BAD_STATE = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
                                      mujoco.mjtWarning.mjWARN_BADQVEL))  # fmt: skip
-"""MuJoCo's warnings of a diverged state: it resets the data on a bad position or velocity (so the position is
-finite again afterwards), and warns on a bad acceleration."""
+"""MuJoCo's warnings of a diverged state. With them it resets the data (its auto-reset, on in every scene): the
+position is finite again and the time restarts at 0, which is what a tick checks; :meth:`Run.finish` reads the
+warnings themselves."""
 
 REASONS: tuple[str, ...] = (
     "unreachable:approach",
@@ -314,9 +315,9 @@ class Run:
         self.data = scene.make_data(q_start, obj.primitive_pose if pose is None else pose)
         self.z0 = float(scene.object_position(self.data)[2])
         self.out = SimOutcome()
-        dt = float(scene.model.opt.timestep)
-        self.nsub = max(1, round(cfg.control_period / dt))
-        self.tick = self.nsub * dt
+        self.dt = float(scene.model.opt.timestep)
+        self.nsub = max(1, round(cfg.control_period / self.dt))
+        self.tick = self.nsub * self.dt
         self.early_stop = cfg.early_stop and scene.obstacle_geoms.size == 0
         self.object_dof = int(scene.model.jnt_dofadr[scene.model.body_jntadr[scene.object_body]])
         self.gravity = float(np.linalg.norm(scene.model.opt.gravity))
@@ -328,6 +329,7 @@ class Run:
         self.targets: tuple[Callable[[float], FloatArray], int, int] | None = None  # arm, tick in phase, ticks
         self.alone_end: AloneEnd | None = None
         self.next_alone_try = 0  # the first tick at which the clear_alone rule is tried (again)
+        self.room_tracks: tuple[int, RoomTracks] | None = None  # the tick they start after, the robot's room
 
     def resume(self, prefix: Prefix, rp: Replay) -> None:
         """Continue from tick ``rp.tick`` of a recorded approach (:mod:`softsig_service.simulation.approach_replay`):
@@ -356,8 +358,9 @@ class Run:
         links (held against the flange, or falling past the wrist) are not arm collisions, and its contacts
         with the hand are recorded in ``touched_in_lift``."""
         scene, data, out = self.scene, self.data, self.out
+        t_due = float(data.time) + (self.nsub - 0.5) * self.dt
         mujoco.mj_step(scene.model, data, self.nsub)
-        if not np.isfinite(data.qpos).all() or any(data.warning[w].number for w in _BAD_STATE):
+        if data.time < t_due or not np.isfinite(data.qpos).all():  # MuJoCo reset a bad state: time restarts at 0
             out.unstable = True
             out.stopped = {"rule": "diverged", "time": round(float(data.time), 4)}
             return False
@@ -396,12 +399,18 @@ class Run:
         if self.scene.object_geoms.size != 1:
             return False
         self.next_alone_try = self.done + CLEAR_ALONE_RETRY
-        targets = self._remaining_targets()
-        if not targets:
+        if self.room_tracks is None:  # the rest of the schedule's targets, once per trial (later tries: a suffix)
+            targets = self._remaining_targets()
+            if not targets:
+                return False
+            self.room_tracks = (self.done, RoomTracks(self.scene, self.data, targets, OUT_OF_REACH_CLEARANCE))
+        start, tracks = self.room_tracks
+        i = self.done - start
+        if i >= len(tracks):
             return False
-        room = robot_room(self.scene, self.data, targets, OUT_OF_REACH_CLEARANCE)
         alone = build_object_alone(self.obj, self.scene)
-        self.alone_end = follow_alone(self.scene, alone, self.data, room, len(targets), self.nsub)
+        room = tracks.room(i, self.data)
+        self.alone_end = follow_alone(self.scene, alone, self.data, room, len(tracks) - i, self.nsub)
         return self.alone_end is not None
 
     def _out_of_reach(self, contacts: ContactSummary) -> bool:
@@ -465,6 +474,8 @@ class Run:
         ``p_hold`` [m] is the object's centre in the flange frame at the start of the hold."""
         scene, data, out = self.scene, self.data, self.out
         out.sim_time = float(data.time)
+        if not out.unstable and any(data.warning[w].number for w in _BAD_STATE):
+            out.unstable = True  # a divergence no tick saw (an auto-reset turned off)
         if self.alone_end is not None:  # stopped by clear_alone: the end of the schedule is the alone simulation's
             out.rise = self.alone_end.height - self.z0
             out.max_rise = max(out.max_rise, self.alone_end.max_height - self.z0)

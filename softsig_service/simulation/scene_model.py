@@ -82,6 +82,7 @@ def _pair_bits() -> NDArray[np.uint8]:
 
 
 _PAIR_BITS = _pair_bits()
+_PAIR_BITS_LIST: list[list[int]] = _PAIR_BITS.tolist()
 _NO_CONTACT = ContactSummary(False, False, False, False, False)
 
 
@@ -172,10 +173,13 @@ class Scene:
         if n == 0:
             return _NO_CONTACT
         con = data.contact
-        cls = self.geom_class[con.geom[:n][con.dist[:n] <= 0.0]]
-        if cls.size == 0:
+        cls, pair_bits = self._class_list, _PAIR_BITS_LIST  # plain lists: a dozen contacts a tick, read one by one
+        bits = 0
+        for (g1, g2), dist in zip(con.geom[:n].tolist(), con.dist[:n].tolist(), strict=True):
+            if dist <= 0.0:
+                bits |= pair_bits[cls[g1]][cls[g2]]
+        if bits == 0:
             return _NO_CONTACT
-        bits = int(np.bitwise_or.reduce(_PAIR_BITS[cls[:, 0], cls[:, 1]]))
         return ContactSummary(*(bool(bits & (1 << k)) for k in range(len(_PAIRS))))
 
     def object_touches_table(self, data: mujoco.MjData) -> bool:
@@ -212,6 +216,11 @@ class Scene:
             r_origin = max(r_origin, float(np.max(np.linalg.norm(in_body, axis=1))))
             r_com = max(r_com, float(np.max(np.linalg.norm(in_body - com, axis=1))))
         return r_origin, r_com
+
+    @functools.cached_property
+    def _class_list(self) -> list[int]:
+        """:attr:`geom_class` as a list (read per contact by :meth:`contact_summary`)."""
+        return [int(c) for c in self.geom_class]
 
     @functools.cached_property
     def geom_class(self) -> NDArray[np.int8]:

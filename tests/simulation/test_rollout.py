@@ -257,11 +257,12 @@ def test_trial_result_json_round_trip() -> None:
     assert d["seed"] == 9 and d["perturbation"] == dataclasses.asdict(r.perturbation)
 
 
-def test_a_state_mujoco_resets_is_caught_as_diverged() -> None:
-    """MuJoCo resets the data on a non-finite velocity (the position is finite again afterwards): its warning ends
-    the trial as ``diverged``."""
-    from softsig_service.experiments.trial import default_planner
-    from softsig_service.objects import builtin_object
+def test_a_state_mujoco_resets_is_caught_as_diverged(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """MuJoCo resets the data on a non-finite velocity (the position is finite again afterwards, the time restarts):
+    the tick ends the trial as ``diverged``, and the warning counts."""
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warning to MUJOCO_LOG.TXT in the working folder
+    import mujoco
+
     from softsig_service.simulation.rollout import Run
     from softsig_service.simulation.scene import build_scene
 
@@ -273,3 +274,4 @@ def test_a_state_mujoco_resets_is_caught_as_diverged() -> None:
     assert not run.step(False)
     assert np.isfinite(run.data.qpos).all()  # reset by MuJoCo: only its warning tells
     assert run.out.unstable and run.out.stopped is not None and run.out.stopped["rule"] == "diverged"
+    assert run.data.warning[int(mujoco.mjtWarning.mjWARN_BADQVEL)].number == 1
