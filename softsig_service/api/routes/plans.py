@@ -72,15 +72,26 @@ async def _build_planning_model(ctx: AppContext, hand: repo.HandRef, body: PlanI
     remember_planning_model(model, *key)
 
 
-def _plan_if_ready(ctx: AppContext, body: PlanIn) -> tuple[repo.HandRef, dict[str, Any] | None]:
-    """The hand of ``body`` and, when this process has its planning model already, the plan (one trip to the
-    threadpool for both); None when the model must be built first."""
+PlanAnswer = tuple[str | None, bytes]
+"""A plan's answer: its stored id (None: not stored) and its JSON body (``PlanOut``)."""
+
+
+def _plan_if_ready(ctx: AppContext, body: PlanIn) -> tuple[repo.HandRef, PlanAnswer | None]:
+    """The hand of ``body`` and, when this process has its planning model already, the plan's answer (one trip to
+    the threadpool for both); None when the model must be built first."""
     from softsig_service.planning import cached_planning_model
 
     hand = _plan_hand(ctx, body)
     if cached_planning_model(*_model_key(ctx, hand, body)) is None:
         return hand, None
-    return hand, make_plan(ctx, body, hand)
+    return hand, _answer(ctx, body, hand)
+
+
+def _answer(ctx: AppContext, body: PlanIn, hand: repo.HandRef) -> PlanAnswer:
+    """:func:`make_plan`'s plan validated as ``PlanOut`` and serialised in one pass (what FastAPI would do with the
+    returned dict, without its second pass through Python objects and ``json.dumps``)."""
+    data = make_plan(ctx, body, hand)
+    return data.get("id"), model_json(PlanOut, data)
 
 
 def capture_model(
@@ -207,20 +218,19 @@ def _plan_out(rec: repo.PlanRecord) -> dict[str, Any]:
     **write_route({200: {"model": PlanOut, "description": "the plan, not stored (store: false)"}}),
     summary="Plan a top grasp (synchronous)",
 )
-async def create_plan(ctx: Ctx, body: PlanIn, response: Response) -> dict[str, Any]:
+async def create_plan(ctx: Ctx, body: PlanIn) -> Response:
     """Plan a UR5 top grasp of an object with strategy S, C or R; the plan (``success`` may be false, with
     ``reasons``): 201 with ``Location`` when stored, 200 with ``store: false`` (nothing is created)."""
     async with ctx.plan_slots:  # this process's turn to plan (Settings.plan_concurrency)
-        hand, data = await run_in_threadpool(_plan_if_ready, ctx, body)
-    if data is None:
+        hand, answer = await run_in_threadpool(_plan_if_ready, ctx, body)
+    if answer is None:
         await _build_planning_model(ctx, hand, body)  # in the compute pool, without holding a turn
         async with ctx.plan_slots:
-            data = await run_in_threadpool(make_plan, ctx, body, hand)
-    if data.get("id"):
-        response.headers["Location"] = f"/v1/plans/{data['id']}"
-    else:
-        response.status_code = 200
-    return data
+            answer = await run_in_threadpool(_answer, ctx, body, hand)
+    plan_id, content = answer
+    if plan_id:
+        return json_response(content, 201, {"Location": f"/v1/plans/{plan_id}"})
+    return json_response(content, 200)
 
 
 @router.get("/plans", response_model=PlanList, **read_route(), summary="List plans")
