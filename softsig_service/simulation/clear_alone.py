@@ -64,7 +64,7 @@ def _chain_reach(model: mujoco.MjModel, body: int) -> float:
     return reach
 
 
-@functools.cache
+@functools.lru_cache(maxsize=32)  # per scene model: a process builds a few
 def _hand_parts(model: mujoco.MjModel, mount: int, geoms: tuple[int, ...]) -> HandParts:
     rigid: list[int] = []
     radius: dict[int, float] = {}
