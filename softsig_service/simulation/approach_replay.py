@@ -11,14 +11,14 @@ simulate the robot through the approach and the closure again:
    control tick the full state (``qpos``, ``qvel``, ``act``, ``ctrl``, ``qacc_warmstart``, time) and the poses of
    the hand's and the arm's geoms, and the travel bound: how far any point of those geoms moved since the tick
    before (``|dx| + |dR|_F r`` per geom, ``r`` its bounding radius).
-2. **Replay** (per trial, :func:`replay`): the object alone on the table (:func:`~softsig_service.simulation.scene.
-   build_object_alone`, its island as in the scene) from the trial's pose, tick by tick, and at each tick the
-   distance (MuJoCo's ``mj_geomDistance``) between the object and every hand or arm geom posed as recorded. A tick
-   is shared while nothing of the robot can have touched the object during it: the distance at the tick before
-   exceeds, by :data:`MARGIN`, how far the robot's points (the recorded travel bound) and the object's points
-   (likewise, from its replayed poses) moved in the tick. The trial resumes at the last shared tick (the fingers
-   are then a few millimetres from the object, typically early in the closure), and at the latest one tick before
-   the closure ends.
+2. **Replay** (per trial, :func:`replay`): the object alone on the table
+   (:func:`~softsig_service.simulation.scene.build_object_alone`, its island as in the scene) from the trial's pose,
+   tick by tick, and at each tick the distance (MuJoCo's ``mj_geomDistance``) between the object and every hand or
+   arm geom posed as recorded. A tick is shared while nothing of the robot can have touched the object during it: the
+   distance at the tick before exceeds, by :data:`MARGIN`, how far the robot's points (the recorded travel bound) and
+   the object's points (likewise, along its replayed poses at every time step) moved in the tick, and the contact
+   margin. The trial resumes at the last shared tick (the fingers are then a few millimetres from the object,
+   typically early in the closure), and at the latest one tick before the closure ends.
 3. **Resume**: the scene's data at that tick is the recorded robot state with the object's replayed state; the
    trial's record of the skipped ticks (the object's highest rise, its settling, the first arm-table contact) comes
    from the replay and the recording. From there the full scene is simulated as before.
@@ -41,7 +41,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from softsig_service.simulation.scene_model import OBJECT_BODY, Scene
+from softsig_service.simulation.scene_model import OBJECT_BODY, Scene, diverged
 
 FloatArray = NDArray[np.float64]
 
@@ -164,18 +164,23 @@ def replay(scene: Scene, alone: mujoco.MjModel, start: mujoco.MjData, prefix: Pr
     heights: list[float] = []
     approach_end: FloatArray | None = None
     x_prev, R_prev = d.geom_xpos[og].copy(), d.geom_xmat[og].copy()
+    margin = MARGIN + scene.contact_margin  # a pair closer than its margin makes a contact
     for k in range(1, last + 1):
-        mujoco.mj_step(alone, d, nsub)
-        if not np.isfinite(d.qpos).all():
+        moved = 0.0  # the path of the object's points over the tick's steps (contacts are made at each step's start)
+        x0, R0 = x_prev, R_prev
+        for _ in range(nsub):
+            mujoco.mj_step(alone, d)
+            z = float(d.xpos[ob][2])  # after the tick's last step: as the scene reports it after a tick
+            mujoco.mj_kinematics(alone, d)
+            x, R = d.geom_xpos[og], d.geom_xmat[og]
+            moved += float(np.linalg.norm(x - x0) + np.linalg.norm(R - R0) * r_obj)
+            x0, R0 = x.copy(), R.copy()
+        if diverged(d):
             break
-        z = float(d.xpos[ob][2])  # as the scene reports it after a tick (positions of its last step's start)
-        mujoco.mj_kinematics(alone, d)
-        x, R = d.geom_xpos[og], d.geom_xmat[og]
-        moved = float(np.linalg.norm(x - x_prev) + np.linalg.norm(R - R_prev) * r_obj)
-        need = moved + prefix.travel[k] + MARGIN  # the gap at the tick before must exceed this
+        need = moved + prefix.travel[k] + margin  # the gap at the tick before must exceed this
         if need >= NEAR or _gap(scene.model, probe, prefix, k - 1, obj_geom, x_prev, R_prev, rbound, need) < need:
             break  # something of the robot may have touched the object in this tick
-        x_prev, R_prev = x.copy(), R.copy()
+        x_prev, R_prev = x0, R0
         heights.append(z)
         states.append((d.qpos.copy(), d.qvel.copy(), d.qacc_warmstart.copy()))
         if k == prefix.n_approach:

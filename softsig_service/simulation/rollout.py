@@ -101,14 +101,9 @@ from softsig_service.simulation.approach_replay import (
 from softsig_service.simulation.clear_alone import AloneEnd, RoomTracks, follow_alone
 from softsig_service.simulation.diagnosis import snapshot
 from softsig_service.simulation.scene import build_object_alone
-from softsig_service.simulation.scene_model import ContactSummary, Scene
+from softsig_service.simulation.scene_model import ContactSummary, Scene, diverged
 
 FloatArray = NDArray[np.float64]
-_BAD_STATE = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
-                                     mujoco.mjtWarning.mjWARN_BADQVEL))  # fmt: skip
-"""MuJoCo's warnings of a diverged state. With them it resets the data (its auto-reset, on in every scene): the
-position is finite again and the time restarts at 0, which is what a tick checks; :meth:`Run.finish` reads the
-warnings themselves."""
 
 REASONS: tuple[str, ...] = (
     "unreachable:approach",
@@ -231,9 +226,10 @@ STOP_RULES: dict[str, str] = {
     "clear_alone": (
         "during the lift or the hold, in a scene without obstacles, the object touches neither the hand nor the arm, "
         "and the object simulated alone on the table from its state now to the end of the schedule keeps its "
-        "bounding sphere, at every control tick, outside the robot's room: the bounding spheres of the arm's geoms "
-        "at the joint targets of every remaining tick and a sphere about the hand's mount that holds the hand in any "
-        "posture, each widened by OUT_OF_REACH_CLEARANCE (softsig_service.simulation.clear_alone). Nothing but the "
+        "bounding sphere, at every time step, outside the robot's room: boxes holding the bounding spheres of the "
+        "arm's geoms and of the hand's geoms rigid with its mount at the joint targets of every remaining tick and "
+        "now, and per finger a sphere about its root that holds it in any posture, each widened by "
+        "OUT_OF_REACH_CLEARANCE and the contact margin (softsig_service.simulation.clear_alone). Nothing but the "
         "table touches it in the full scene either, so it moves there as it does alone and the hand never touches "
         "it again: the trial ends 'dropped' or 'no_contact', with the end state of the alone simulation, as the "
         "full schedule would (an object that rolls away across the table)"
@@ -358,11 +354,14 @@ class Run:
         links (held against the flange, or falling past the wrist) are not arm collisions, and its contacts
         with the hand are recorded in ``touched_in_lift``."""
         scene, data, out = self.scene, self.data, self.out
-        t_due = float(data.time) + (self.nsub - 0.5) * self.dt
+        t_start = float(data.time)
         mujoco.mj_step(scene.model, data, self.nsub)
-        if data.time < t_due or not np.isfinite(data.qpos).all():  # MuJoCo reset a bad state: time restarts at 0
+        # MuJoCo resets a diverged state (time back to 0): a tick that ends early diverged; a tick from 0 (where
+        # the reset's time may look right) reads the warnings themselves
+        reset = data.time < t_start + (self.nsub - 0.5) * self.dt or (t_start < self.dt and diverged(data))
+        if reset or not np.isfinite(data.qpos).all():
             out.unstable = True
-            out.stopped = {"rule": "diverged", "time": round(float(data.time), 4)}
+            out.stopped = {"rule": "diverged", "time": round(t_start + self.tick, 4)}
             return False
         contacts = scene.contact_summary(data)
         arm_hit = contacts.arm_table or contacts.arm_obstacle or (contacts.arm_object and not grasping)
@@ -396,14 +395,15 @@ class Run:
         :data:`CLEAR_ALONE_RETRY` ticks while the object is out of the hand)."""
         if contacts.object_hand or contacts.arm_object or self.done < self.next_alone_try:
             return False
-        if self.scene.object_geoms.size != 1:
+        if self.scene.object_geoms.size != 1 or self.scene.stray_colliders:
             return False
         self.next_alone_try = self.done + CLEAR_ALONE_RETRY
         if self.room_tracks is None:  # the rest of the schedule's targets, once per trial (later tries: a suffix)
             targets = self._remaining_targets()
             if not targets:
                 return False
-            self.room_tracks = (self.done, RoomTracks(self.scene, self.data, targets, OUT_OF_REACH_CLEARANCE))
+            clearance = OUT_OF_REACH_CLEARANCE + self.scene.contact_margin
+            self.room_tracks = (self.done, RoomTracks(self.scene, self.data, targets, clearance))
         start, tracks = self.room_tracks
         i = self.done - start
         if i >= len(tracks):
@@ -474,8 +474,8 @@ class Run:
         ``p_hold`` [m] is the object's centre in the flange frame at the start of the hold."""
         scene, data, out = self.scene, self.data, self.out
         out.sim_time = float(data.time)
-        if not out.unstable and any(data.warning[w].number for w in _BAD_STATE):
-            out.unstable = True  # a divergence no tick saw (an auto-reset turned off)
+        if not out.unstable and diverged(data):
+            out.unstable = True  # a divergence no tick saw
         if self.alone_end is not None:  # stopped by clear_alone: the end of the schedule is the alone simulation's
             out.rise = self.alone_end.height - self.z0
             out.max_rise = max(out.max_rise, self.alone_end.max_height - self.z0)
@@ -576,7 +576,7 @@ def simulate(
     if on_phase is not None:
         on_phase.start(scene, data, (approach[0], approach[-1], lift[-1]))
     if (cfg.replay_approach and on_frame is None and on_phase is None and scene.obstacle_geoms.size == 0
-            and scene.object_geoms.size == 1):  # fmt: skip
+            and scene.object_geoms.size == 1 and not scene.stray_colliders):  # fmt: skip
         _replayed_start(run, obj, approach, cfg)
     c_closed = scene.closure_closed
     next_frame = 0.0

@@ -82,6 +82,21 @@ def _pair_bits() -> NDArray[np.uint8]:
 
 
 _PAIR_BITS = _pair_bits()
+
+BAD_STATE_WARNINGS: tuple[int, ...] = tuple(
+    int(w)
+    for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL)
+)
+"""MuJoCo's warnings of a diverged state; with each it resets the data (its auto-reset, on in every model here): the
+position is finite again and the time restarts at 0."""
+
+
+def diverged(data: mujoco.MjData) -> bool:
+    """Whether MuJoCo met a diverged state in ``data`` (a non-finite position, or a warning of
+    :data:`BAD_STATE_WARNINGS`: the data was reset since)."""
+    return not np.isfinite(data.qpos).all() or any(data.warning[w].number for w in BAD_STATE_WARNINGS)
+
+
 _PAIR_BITS_LIST: list[list[int]] = _PAIR_BITS.tolist()
 _NO_CONTACT = ContactSummary(False, False, False, False, False)
 
@@ -216,6 +231,22 @@ class Scene:
             r_origin = max(r_origin, float(np.max(np.linalg.norm(in_body, axis=1))))
             r_com = max(r_com, float(np.max(np.linalg.norm(in_body - com, axis=1))))
         return r_origin, r_com
+
+    @functools.cached_property
+    def contact_margin(self) -> float:
+        """[m] the largest ``geom_margin`` of the robot's and the object's geoms: MuJoCo makes a contact of a pair
+        closer than the larger of its two margins (0 for the built-in hands and objects)."""
+        geoms = np.concatenate([self.hand_geoms, self.arm_geoms, self.object_geoms])
+        return float(np.max(self.model.geom_margin[geoms])) if geoms.size else 0.0
+
+    @functools.cached_property
+    def stray_colliders(self) -> bool:
+        """Whether a geom that is neither the robot's, the object's, the table's nor an obstacle's can collide (a
+        contact bit set): the approach replay and the ``clear_alone`` rule, which know only the robot's geoms,
+        are off then."""
+        m = self.model
+        other = np.flatnonzero(self.geom_class == GEOM_OTHER)
+        return bool(np.any((m.geom_contype[other] != 0) | (m.geom_conaffinity[other] != 0)))
 
     @functools.cached_property
     def _class_list(self) -> list[int]:

@@ -12,9 +12,9 @@ from hypothesis import strategies as st
 from softsig_service.experiments.campaign_spec import CampaignSpec, plan_options
 from softsig_service.experiments.trial import default_planner, run_trial
 from softsig_service.objects import builtin_object
-from softsig_service.simulation.clear_alone import hand_parts, robot_room
+from softsig_service.simulation.clear_alone import Room, RoomTracks, follow_alone, hand_parts, robot_room
 from softsig_service.simulation.rollout import STOP_RULES, RolloutConfig
-from softsig_service.simulation.scene import build_scene
+from softsig_service.simulation.scene import build_object_alone, build_scene
 
 HAND = "pisa_iit_softhand"
 ROLLS_AWAY = ("c2/apple/C/32", "c1/apple/C/74", "c2/apple/S/53", "c1/apple/C/93", "c2/apple/C/64")
@@ -27,21 +27,46 @@ def scene():  # type: ignore[no-untyped-def]
     return build_scene(HAND, builtin_object("apple"), default_planner().settings, ())
 
 
+@pytest.fixture(scope="module")
+def gripper():  # type: ignore[no-untyped-def]
+    """A scene whose hand has slides (the parallel gripper's jaws, reference position at the open end)."""
+    return build_scene("parallel_gripper", builtin_object("apple"), default_planner().settings, ())
+
+
 def _hand_joints(model: mujoco.MjModel, geoms: np.ndarray, arm_qpos: np.ndarray) -> list[int]:
-    """The hinges on the hand geoms' chains, the arm's left out."""
+    """The hinges and slides on the hand geoms' chains, the arm's left out."""
     joints = set()
     for g in geoms:
         b = int(model.geom_bodyid[g])
         while b > 0:
             joints.update(range(int(model.body_jntadr[b]), int(model.body_jntadr[b] + model.body_jntnum[b])))
             b = int(model.body_parentid[b])
-    hinge = mujoco.mjtJoint.mjJNT_HINGE
-    return sorted(j for j in joints if model.jnt_qposadr[j] not in arm_qpos and model.jnt_type[j] == hinge)
+    kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    return sorted(j for j in joints if model.jnt_qposadr[j] not in arm_qpos and int(model.jnt_type[j]) in kinds)
 
 
 @settings(max_examples=40, deadline=None)
 @given(st.lists(st.floats(0.0, 1.0), min_size=64, max_size=64))
 def test_every_hand_geom_lies_in_its_chain_sphere_in_any_posture(scene, u: list[float]) -> None:  # type: ignore[no-untyped-def]
+    _check_chains(scene, u, min_joints=10)  # the SoftHand's finger hinges
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(0.0, 1.0), min_size=8, max_size=8))
+def test_a_slide_chain_holds_its_jaw_over_its_whole_travel(gripper, u: list[float]) -> None:  # type: ignore[no-untyped-def]
+    m = gripper.model
+    slides = [
+        j
+        for j in _hand_joints(m, gripper.hand_geoms, gripper.arm_qpos)
+        if int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_SLIDE)
+    ]
+    assert slides and all(m.qpos0[m.jnt_qposadr[j]] != 0.0 for j in slides)  # travel measured from the reference
+    _check_chains(gripper, u, min_joints=2)
+
+
+def _check_chains(scene, u: list[float], min_joints: int) -> None:  # type: ignore[no-untyped-def]
+    """Every hand geom in a random posture (joint values across their ranges from ``u``): a rigid one where it was,
+    a chain's one inside its root's sphere; every hand geom covered by one or the other."""
     m = scene.model
     parts = hand_parts(scene)
     d = mujoco.MjData(m)
@@ -49,7 +74,7 @@ def test_every_hand_geom_lies_in_its_chain_sphere_in_any_posture(scene, u: list[
     mount = int(scene.mount_body)
     rigid_before = [(d.xmat[mount].reshape(3, 3).T @ (d.geom_xpos[g] - d.xpos[mount])) for g in parts.rigid]
     joints = _hand_joints(m, scene.hand_geoms, scene.arm_qpos)
-    assert len(joints) >= 10  # the fingers' hinges
+    assert len(joints) >= min_joints
     for k, j in enumerate(joints):
         lo, hi = m.jnt_range[j] if m.jnt_limited[j] else (-np.pi, np.pi)
         d.qpos[m.jnt_qposadr[j]] = lo + u[k % len(u)] * (hi - lo)
@@ -74,20 +99,49 @@ def test_every_hand_geom_lies_in_its_chain_sphere_in_any_posture(scene, u: list[
     assert len(root_of) + parts.rigid.size == scene.hand_geoms.size  # every hand geom is covered
 
 
-def test_the_room_holds_the_robot_at_its_targets(scene) -> None:  # type: ignore[no-untyped-def]
-    """Every robot geom's bounding sphere at a target lies inside one of the room's boxes."""
+def test_the_room_holds_the_robot_at_the_targets_of_its_suffix(scene) -> None:  # type: ignore[no-untyped-def]
+    """Every robot geom's bounding sphere at any target from the ``i``-th on lies inside one of ``room(i)``'s boxes,
+    and the room of a later suffix is no larger."""
     m = scene.model
     d = scene.make_data(np.array([0.0, -1.2, 1.5, -1.9, -1.57, 0.0]), builtin_object("apple").primitive_pose)
-    q = np.array([0.1, -1.1, 1.4, -1.8, -1.57, 0.2])
-    room = robot_room(scene, d, [q], 0.0)
+    targets = [np.array([0.1 * t, -1.1 - 0.05 * t, 1.4, -1.8, -1.57, 0.2 * t]) for t in range(6)]
+    tracks = RoomTracks(scene, d, targets, 0.0)
+    assert len(tracks) == len(targets)
     probe = mujoco.MjData(m)
     probe.qpos[:] = d.qpos
-    probe.qpos[scene.arm_qpos] = q
-    mujoco.mj_kinematics(m, probe)
-    for g in np.concatenate([scene.arm_geoms, scene.hand_geoms]):
-        c, r = probe.geom_xpos[g], float(m.geom_rbound[g])
-        inside = np.all((room.lo <= c - r + 1e-9) & (c + r <= room.hi + 1e-9), axis=1)
-        assert inside.any(), f"geom {g} outside the room"
+    geoms = np.concatenate([scene.arm_geoms, scene.hand_geoms])
+    for i in range(len(targets)):
+        room = tracks.room(i, d)
+        for q in targets[i:]:
+            probe.qpos[scene.arm_qpos] = q
+            mujoco.mj_kinematics(m, probe)
+            for g in geoms:
+                c, r = probe.geom_xpos[g], float(m.geom_rbound[g])
+                inside = np.all((room.lo <= c - r + 1e-9) & (c + r <= room.hi + 1e-9), axis=1)
+                assert inside.any(), f"geom {g} at target {i} outside the room"
+        if i > 0:
+            assert np.all(tracks.lo[i] >= tracks.lo[i - 1]) and np.all(tracks.hi[i] <= tracks.hi[i - 1])
+    assert robot_room(scene, d, targets, 0.0).lo.shape == tracks.room(0, d).lo.shape
+
+
+def test_follow_alone_refuses_a_room_on_the_objects_path(scene) -> None:  # type: ignore[no-untyped-def]
+    """An apple rolling along +x at 1 m/s: a box 20 cm ahead of it is met, the same box behind it is not (and the
+    end state is then the alone simulation's), and a box where it lies now is met at once."""
+    apple = builtin_object("apple")
+    d = scene.make_data(np.array([0.0, -1.2, 1.5, -1.9, -1.57, 0.0]), apple.primitive_pose)
+    dof = int(scene.model.jnt_dofadr[scene.model.body_jntadr[scene.object_body]])
+    d.qvel[dof] = 1.0
+    alone = build_object_alone(apple, scene)
+    c = d.xpos[scene.object_body].copy()
+
+    def box(dx: float) -> Room:
+        centre = c + np.array([dx, 0.0, 0.0])
+        return Room(lo=(centre - 0.01)[None, :], hi=(centre + 0.01)[None, :])
+
+    assert follow_alone(scene, alone, d, box(0.2), 50, 5) is None  # 0.5 s at about 1 m/s passes 20 cm ahead
+    end = follow_alone(scene, alone, d, box(-0.2), 50, 5)
+    assert end is not None and end.touches_table and end.height == pytest.approx(c[2], abs=0.005)
+    assert follow_alone(scene, alone, d, box(0.0), 50, 5) is None
 
 
 @pytest.fixture(scope="module")

@@ -20,6 +20,7 @@ from softsig_service.gl_backend import render_unavailable_reason
 from softsig_service.objects import builtin_object
 from softsig_service.planning.planner import PlanRequest
 from softsig_service.simulation.rollout import REASONS, Perturbation, RolloutConfig, SimOutcome, judge
+from softsig_service.simulation.scene import build_scene
 
 LIFT_THRESHOLD = 0.5 * 0.15  # docs/design.md §7: a carried object rose by at least half the 0.15 m lift
 
@@ -257,21 +258,26 @@ def test_trial_result_json_round_trip() -> None:
     assert d["seed"] == 9 and d["perturbation"] == dataclasses.asdict(r.perturbation)
 
 
-def test_a_state_mujoco_resets_is_caught_as_diverged(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("healthy_ticks", [0, 1])
+def test_a_state_mujoco_resets_is_caught_as_diverged(
+    healthy_ticks: int, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """MuJoCo resets the data on a non-finite velocity (the position is finite again afterwards, the time restarts):
-    the tick ends the trial as ``diverged``, and the warning counts."""
-    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warning to MUJOCO_LOG.TXT in the working folder
+    the tick ends the trial as ``diverged``, also on the very first tick (where the reset's time looks right), and
+    the warning counts."""
     import mujoco
 
     from softsig_service.simulation.rollout import Run
-    from softsig_service.simulation.scene import build_scene
 
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warning to MUJOCO_LOG.TXT in the working folder
     box = builtin_object("box")
     scene = build_scene("pisa_iit_softhand", box, default_planner().settings, ())
     run = Run(scene, box, np.array([0.0, -1.2, 1.5, -1.9, -1.57, 0.0]), RolloutConfig())
-    assert run.step(False)  # a healthy tick
+    for _ in range(healthy_ticks):
+        assert run.step(False)
     run.data.qvel[scene.arm_dof[0]] = np.nan
     assert not run.step(False)
-    assert np.isfinite(run.data.qpos).all()  # reset by MuJoCo: only its warning tells
+    assert np.isfinite(run.data.qpos).all()  # reset by MuJoCo
     assert run.out.unstable and run.out.stopped is not None and run.out.stopped["rule"] == "diverged"
+    assert run.out.stopped["time"] == pytest.approx((healthy_ticks + 1) * run.tick)
     assert run.data.warning[int(mujoco.mjtWarning.mjWARN_BADQVEL)].number == 1
