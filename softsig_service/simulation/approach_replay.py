@@ -166,15 +166,17 @@ def replay(scene: Scene, alone: mujoco.MjModel, start: mujoco.MjData, prefix: Pr
     x_prev, R_prev = d.geom_xpos[og].copy(), d.geom_xmat[og].copy()
     margin = MARGIN + scene.contact_margin  # a pair closer than its margin makes a contact
     for k in range(1, last + 1):
-        moved = 0.0  # the path of the object's points over the tick's steps (contacts are made at each step's start)
-        x0, R0 = x_prev, R_prev
-        for _ in range(nsub):
-            mujoco.mj_step(alone, d)
-            z = float(d.xpos[ob][2])  # after the tick's last step: as the scene reports it after a tick
-            mujoco.mj_kinematics(alone, d)
-            x, R = d.geom_xpos[og], d.geom_xmat[og]
-            moved += float(np.linalg.norm(x - x0) + np.linalg.norm(R - R0) * r_obj)
-            x0, R0 = x.copy(), R.copy()
+        moved = 0.0  # the path of the object's points through the positions its steps start from (where contacts
+        x0, R0 = x_prev, R_prev  # are made) to the tick's end
+        for j in range(nsub):
+            mujoco.mj_step(alone, d)  # leaves the poses the step started from (the first: the tick's start)
+            if j > 0:
+                moved += float(np.linalg.norm(d.geom_xpos[og] - x0) + np.linalg.norm(d.geom_xmat[og] - R0) * r_obj)
+                x0, R0 = d.geom_xpos[og].copy(), d.geom_xmat[og].copy()
+        z = float(d.xpos[ob][2])  # as the scene reports it after a tick (the last step's start)
+        mujoco.mj_kinematics(alone, d)
+        moved += float(np.linalg.norm(d.geom_xpos[og] - x0) + np.linalg.norm(d.geom_xmat[og] - R0) * r_obj)
+        x0, R0 = d.geom_xpos[og].copy(), d.geom_xmat[og].copy()
         if diverged(d):
             break
         need = moved + prefix.travel[k] + margin  # the gap at the tick before must exceed this

@@ -204,14 +204,16 @@ def follow_alone(
     height = max_height = float(data.xpos[scene.object_body][2])
     prev = d.geom_xpos[og].copy()
     for _ in range(ticks):
-        path = 0.0
-        for _ in range(nsub):  # contacts are made at each step's positions: the path bounds every one of them
-            mujoco.mj_step(alone, d)
-            height = float(d.xpos[ob][2])  # after the tick's last step: as the scene reports it after a tick
-            mujoco.mj_kinematics(alone, d)
-            now = d.geom_xpos[og]
-            path += float(np.linalg.norm(now - prev))
-            prev = now.copy()
+        path = 0.0  # through the positions the steps start from (where contacts are made) to the tick's end
+        for j in range(nsub):
+            mujoco.mj_step(alone, d)  # leaves the positions the step started from (the first: the tick's start)
+            if j > 0:
+                path += float(np.linalg.norm(d.geom_xpos[og] - prev))
+                prev = d.geom_xpos[og].copy()
+        height = float(d.xpos[ob][2])  # as the scene reports it after a tick (the last step's start)
+        mujoco.mj_kinematics(alone, d)
+        path += float(np.linalg.norm(d.geom_xpos[og] - prev))
+        prev = d.geom_xpos[og].copy()
         if diverged(d):
             return None
         max_height = max(max_height, height)
