@@ -166,23 +166,13 @@ def replay(scene: Scene, alone: mujoco.MjModel, start: mujoco.MjData, prefix: Pr
     x_prev, R_prev = d.geom_xpos[og].copy(), d.geom_xmat[og].copy()
     margin = MARGIN + scene.contact_margin  # a pair closer than its margin makes a contact
     for k in range(1, last + 1):
-        moved = 0.0  # the path of the object's points through the positions its steps start from (where contacts
-        x0, R0 = x_prev, R_prev  # are made) to the tick's end
-        for j in range(nsub):
-            mujoco.mj_step(alone, d)  # leaves the poses the step started from (the first: the tick's start)
-            if j > 0:
-                moved += float(np.linalg.norm(d.geom_xpos[og] - x0) + np.linalg.norm(d.geom_xmat[og] - R0) * r_obj)
-                x0, R0 = d.geom_xpos[og].copy(), d.geom_xmat[og].copy()
-        z = float(d.xpos[ob][2])  # as the scene reports it after a tick (the last step's start)
-        mujoco.mj_kinematics(alone, d)
-        moved += float(np.linalg.norm(d.geom_xpos[og] - x0) + np.linalg.norm(d.geom_xmat[og] - R0) * r_obj)
-        x0, R0 = d.geom_xpos[og].copy(), d.geom_xmat[og].copy()
+        z, moved = alone_tick(alone, d, og, ob, nsub, r_obj)
         if diverged(d):
             break
         need = moved + prefix.travel[k] + margin  # the gap at the tick before must exceed this
         if need >= NEAR or _gap(scene.model, probe, prefix, k - 1, obj_geom, x_prev, R_prev, rbound, need) < need:
             break  # something of the robot may have touched the object in this tick
-        x_prev, R_prev = x0, R0
+        x_prev, R_prev = d.geom_xpos[og].copy(), d.geom_xmat[og].copy()
         heights.append(z)
         states.append((d.qpos.copy(), d.qvel.copy(), d.qacc_warmstart.copy()))
         if k == prefix.n_approach:
@@ -191,6 +181,33 @@ def replay(scene: Scene, alone: mujoco.MjModel, start: mujoco.MjData, prefix: Pr
     qpos, qvel, warm = states[tick]
     return Replay(tick=tick, qpos=qpos, qvel=qvel, warmstart=warm, heights=np.array(heights),
                   approach_end=approach_end if tick >= prefix.n_approach else None)  # fmt: skip
+
+
+def alone_tick(
+    alone: mujoco.MjModel, d: mujoco.MjData, geom: int, body: int, nsub: int, r: float
+) -> tuple[float, float]:
+    """One control tick (``nsub`` time steps) of the object alone (``d``'s positions computed at its start, as this
+    leaves them at its end): the body's world height [m] as the scene reports it after a tick (the last step's
+    start), and the path [m] of ``geom``'s points through the poses its steps start from (where MuJoCo makes
+    contacts) to the tick's end, ``|dx| + |dR|_F r`` per move (``r``: the radius whose points count; 0 for the
+    centre alone)."""
+    x0, R0 = d.geom_xpos[geom].copy(), d.geom_xmat[geom].copy()
+    path = 0.0
+
+    def moved() -> float:  # from (x0, R0) to the poses in d now
+        nonlocal x0, R0
+        x, R = d.geom_xpos[geom], d.geom_xmat[geom]
+        step = float(np.linalg.norm(x - x0)) + (float(np.linalg.norm(R - R0)) * r if r else 0.0)
+        x0, R0 = x.copy(), R.copy()
+        return step
+
+    for j in range(nsub):
+        mujoco.mj_step(alone, d)  # leaves the poses the step started from (the first step's: the tick's start)
+        if j > 0:
+            path += moved()
+    height = float(d.xpos[body][2])
+    mujoco.mj_kinematics(alone, d)  # the tick's end
+    return height, path + moved()
 
 
 def _gap(

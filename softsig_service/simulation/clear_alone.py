@@ -34,6 +34,7 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from softsig_service.simulation.approach_replay import alone_tick
 from softsig_service.simulation.scene_model import OBJECT_BODY, Scene, diverged
 
 FloatArray = NDArray[np.float64]
@@ -41,7 +42,7 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class HandParts:
-    """The hand split for :func:`robot_room`: ``rigid`` geoms move with the mount whatever the posture (their own
+    """The hand split for :class:`RoomTracks`: ``rigid`` geoms move with the mount whatever the posture (their own
     bounding spheres); every other geom hangs below a ``root`` body, the jointed body nearest the mount on its chain,
     and lies within ``radius`` [m] of the point where that root's origin sits in its parent's frame (``root_pos``),
     in any posture. ``roots``, ``root_pos`` and ``radius`` are per root."""
@@ -159,12 +160,6 @@ class RoomTracks:
         return Room(np.concatenate([now - r, self.lo[i]]), np.concatenate([now + r, self.hi[i]]))
 
 
-def robot_room(scene: Scene, data: mujoco.MjData, arm_targets: Sequence[FloatArray], clearance: float) -> Room:
-    """The robot's room (module docstring, step 1) for the arm's joint targets ``arm_targets`` [rad] of the
-    remaining ticks and its state in ``data`` now, each sphere widened by ``clearance`` [m]."""
-    return RoomTracks(scene, data, arm_targets, clearance).room(0, data)
-
-
 @dataclass(frozen=True)
 class AloneEnd:
     """The object's end state from :func:`follow_alone`: its world height [m] after the last tick (as the scene
@@ -202,22 +197,12 @@ def follow_alone(
     if not _clear(room, d.geom_xpos[og], r_obj):
         return None
     height = max_height = float(data.xpos[scene.object_body][2])
-    prev = d.geom_xpos[og].copy()
     for _ in range(ticks):
-        path = 0.0  # through the positions the steps start from (where contacts are made) to the tick's end
-        for j in range(nsub):
-            mujoco.mj_step(alone, d)  # leaves the positions the step started from (the first: the tick's start)
-            if j > 0:
-                path += float(np.linalg.norm(d.geom_xpos[og] - prev))
-                prev = d.geom_xpos[og].copy()
-        height = float(d.xpos[ob][2])  # as the scene reports it after a tick (the last step's start)
-        mujoco.mj_kinematics(alone, d)
-        path += float(np.linalg.norm(d.geom_xpos[og] - prev))
-        prev = d.geom_xpos[og].copy()
+        height, path = alone_tick(alone, d, og, ob, nsub, 0.0)  # the sphere's centre: its path bounds every step's
         if diverged(d):
             return None
         max_height = max(max_height, height)
-        if not _clear(room, prev, r_obj + path):
+        if not _clear(room, d.geom_xpos[og], r_obj + path):
             return None
     touches = bool(d.ncon and np.any(d.contact.dist[: d.ncon] <= 0.0))
     return AloneEnd(height=height, max_height=max_height, touches_table=touches)
