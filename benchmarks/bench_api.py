@@ -395,6 +395,20 @@ def serving(data: Path, workers: int, tree: Path | None, strategy: str) -> Itera
             proc.kill()
 
 
+def in_turn(
+    args: argparse.Namespace,
+) -> Iterator[tuple[str, int, contextlib.AbstractContextManager[tuple[str, int]]]]:
+    """The sides to measure, ``--rounds`` times in turn (the ``--baseline`` revision first, then this tree), each as
+    (its name, the round, its service to enter: :func:`serving` with a data folder of its own)."""
+    with tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp:
+        sides: list[tuple[str, Path | None]] = [("this tree", None)]
+        if args.baseline is not None:
+            sides.insert(0, (args.baseline[:10], export_revision(args.baseline, Path(tmp))))
+        for r in range(args.rounds):
+            for i, (name, tree) in enumerate(sides):
+                yield name, r, serving(Path(tmp) / f"data-{r}-{i}", args.workers, tree, args.strategy)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--requests", type=int, default=400, help="requests per run")
@@ -413,16 +427,11 @@ def main() -> None:
     args = parser.parse_args()
     if args.per_request:
         floor = floor_cost(args.workers, args.requests, args.client)
-        with tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp:
-            sides: list[tuple[str, Path | None]] = [("this tree", None)]
+        for name, r, served in in_turn(args):
             if args.baseline is not None:
-                sides.insert(0, (args.baseline[:10], export_revision(args.baseline, Path(tmp))))
-            for r in range(args.rounds):
-                for i, (name, tree) in enumerate(sides):
-                    if args.baseline is not None:
-                        print(f"\n{name} (round {r + 1})", flush=True)
-                    with serving(Path(tmp) / f"data-{r}-{i}", args.workers, tree, args.strategy) as (url, pid):
-                        per_request(url, pid, args.requests, args.strategy, args.client, floor)
+                print(f"\n{name} (round {r + 1})", flush=True)
+            with served as (url, pid):
+                per_request(url, pid, args.requests, args.strategy, args.client, floor)
         return
     print(f"POST /v1/plans, strategy {args.strategy}, pisa_iit_softhand, box at random poses; {os.cpu_count()} CPUs, "
           f"{args.workers} service processes, client {args.client}")  # fmt: skip
@@ -431,27 +440,22 @@ def main() -> None:
     # (requests, concurrency, stored): one request at a time, then --concurrency with plans stored and not
     runs = ((max(50, args.requests // 4), 1, True), (args.requests, args.concurrency, True),
             (args.requests, args.concurrency, False))  # fmt: skip
-    with tempfile.TemporaryDirectory(prefix="softsig-bench-") as tmp:
-        sides: list[tuple[str, Path | None]] = [("this tree", None)]
-        if args.baseline is not None:
-            sides.insert(0, (args.baseline[:10], export_revision(args.baseline, Path(tmp))))
-        for r in range(args.rounds):
-            for i, (name, tree) in enumerate(sides):
-                with serving(Path(tmp) / f"data-{r}-{i}", args.workers, tree, args.strategy) as (url, pid):
-                    for n, concurrency, store in runs:
-                        print_row(
-                            name,
-                            run(
-                                url,
-                                n=n,
-                                concurrency=concurrency,
-                                seconds=args.seconds,
-                                strategy=args.strategy,
-                                store=store,
-                                server_pid=pid,
-                                client=args.client,
-                            ),
-                        )
+    for name, _r, served in in_turn(args):
+        with served as (url, pid):
+            for n, concurrency, store in runs:
+                print_row(
+                    name,
+                    run(
+                        url,
+                        n=n,
+                        concurrency=concurrency,
+                        seconds=args.seconds,
+                        strategy=args.strategy,
+                        store=store,
+                        server_pid=pid,
+                        client=args.client,
+                    ),
+                )
     print("planner ms: mean planner time per plan (each plan's timing.total); server ms: mean time the request")
     print("spent in the server's HTTP stack (softsig_http_request_duration_seconds, route /v1/plans, all processes).")
     print("client CPU / server CPU: CPU time of the client process / of every server process over the run's wall")
